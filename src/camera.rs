@@ -1,0 +1,176 @@
+//! Pinhole camera: world → camera space → pixels, and the Jacobian of that projection.
+//!
+//! Conventions: right-handed world, the camera looks down its −Z, pixel (0,0) is the top-left pixel
+//! and pixel centres sit at half-integers, so the image centre is (width/2, height/2).
+
+use glam::{DAffine3, DVec2, DVec3};
+
+/// A pinhole camera with its image size.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    /// World → camera (view) transform.
+    pub view: DAffine3,
+    /// Camera position in world space.
+    pub eye: DVec3,
+    /// Focal length in pixels: `(height / 2) / tan(fov_y / 2)`.
+    pub focal_px: f64,
+    pub width: u32,
+    pub height: u32,
+    /// Points closer than this (camera-space depth) are not projected.
+    pub near: f64,
+}
+
+/// The 2×3 Jacobian of the projection at a camera-space point: rows are ∂x_px/∂p and ∂y_px/∂p.
+#[derive(Clone, Copy, Debug)]
+pub struct ProjectionJacobian {
+    pub row_x: DVec3,
+    pub row_y: DVec3,
+}
+
+impl ProjectionJacobian {
+    /// The screen-space image of a camera-space vector (to first order).
+    #[must_use]
+    pub fn apply(&self, v: DVec3) -> DVec2 {
+        DVec2::new(self.row_x.dot(v), self.row_y.dot(v))
+    }
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target`; `fov_y_degrees` is the vertical field of view.
+    pub fn look_at(
+        eye: DVec3,
+        target: DVec3,
+        up: DVec3,
+        fov_y_degrees: f64,
+        width: u32,
+        height: u32,
+        near: f64,
+    ) -> Self {
+        let view = DAffine3::look_at_rh(eye, target, up);
+        let focal_px = 0.5 * f64::from(height) / (0.5 * fov_y_degrees.to_radians()).tan();
+        Camera {
+            view,
+            eye,
+            focal_px,
+            width,
+            height,
+            near,
+        }
+    }
+
+    /// The same camera with another image size; the vertical field of view is kept.
+    #[must_use]
+    pub fn resized(&self, width: u32, height: u32) -> Self {
+        let mut camera = self.clone();
+        camera.focal_px *= f64::from(height) / f64::from(self.height);
+        camera.width = width;
+        camera.height = height;
+        camera
+    }
+
+    /// Camera-space point → pixel position and depth (distance along −Z), or `None` when the
+    /// point is not in front of the near plane.
+    #[must_use]
+    pub fn project(&self, p_view: DVec3) -> Option<(DVec2, f64)> {
+        let depth = -p_view.z;
+        if !(depth >= self.near) {
+            return None;
+        }
+        let inv = self.focal_px / depth;
+        Some((
+            DVec2::new(
+                0.5 * f64::from(self.width) + p_view.x * inv,
+                0.5 * f64::from(self.height) - p_view.y * inv,
+            ),
+            depth,
+        ))
+    }
+
+    /// Jacobian of [`Camera::project`] at a camera-space point in front of the camera.
+    #[must_use]
+    pub fn jacobian(&self, p_view: DVec3) -> ProjectionJacobian {
+        let depth = -p_view.z;
+        let inv = self.focal_px / depth;
+        // x_px = cx + f x / d, y_px = cy - f y / d with d = -z, so ∂d/∂z = -1.
+        ProjectionJacobian {
+            row_x: DVec3::new(inv, 0.0, inv * p_view.x / depth),
+            row_y: DVec3::new(0.0, -inv, -inv * p_view.y / depth),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> Camera {
+        Camera::look_at(
+            DVec3::new(0.3, 0.2, 4.0),
+            DVec3::new(0.0, 0.1, 0.0),
+            DVec3::Y,
+            40.0,
+            320,
+            200,
+            0.01,
+        )
+    }
+
+    #[test]
+    fn target_projects_to_image_centre() {
+        let cam = camera();
+        let (px, depth) = cam
+            .project(cam.view.transform_point3(DVec3::new(0.0, 0.1, 0.0)))
+            .unwrap();
+        assert!((px - DVec2::new(160.0, 100.0)).length() < 1e-9);
+        assert!((depth - DVec3::new(0.3, 0.1, 4.0).length()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn up_is_up_on_screen_and_right_is_right() {
+        let cam = Camera::look_at(
+            DVec3::new(0.0, 0.0, 5.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            60.0,
+            100,
+            100,
+            0.01,
+        );
+        let up = cam
+            .project(cam.view.transform_point3(DVec3::new(0.0, 1.0, 0.0)))
+            .unwrap()
+            .0;
+        let right = cam
+            .project(cam.view.transform_point3(DVec3::new(1.0, 0.0, 0.0)))
+            .unwrap()
+            .0;
+        assert!(up.y < 50.0 && (up.x - 50.0).abs() < 1e-9);
+        assert!(right.x > 50.0 && (right.y - 50.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences() {
+        let cam = camera();
+        let p = DVec3::new(0.4, -0.7, -3.0);
+        let jac = cam.jacobian(p);
+        let h = 1e-6;
+        for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
+            let plus = cam.project(p + axis * h).unwrap().0;
+            let minus = cam.project(p - axis * h).unwrap().0;
+            let numeric = (plus - minus) / (2.0 * h);
+            assert!(
+                (numeric - jac.apply(axis)).length() < 1e-5,
+                "{numeric} vs {}",
+                jac.apply(axis)
+            );
+        }
+    }
+
+    #[test]
+    fn points_behind_the_near_plane_do_not_project() {
+        let cam = camera();
+        assert!(cam.project(DVec3::new(0.0, 0.0, 0.5)).is_none());
+        assert!(cam.project(DVec3::new(0.0, 0.0, -0.001)).is_none());
+        assert!(cam.project(DVec3::new(0.0, 0.0, f64::NAN)).is_none());
+    }
+}

@@ -1,0 +1,301 @@
+//! Command-line arguments → validated jobs → library calls. Nothing here renders.
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use streak::plot::{write_error_vs_time_svg, write_study_csv};
+use streak::study::{self, StudyOptions, DEFAULT_TOLERANCE_PX};
+use streak::{output, render, Error, Method, Plan, Result, Scene, Settings};
+
+/// Motion blur and motion hints for point-based geometry.
+#[derive(Parser)]
+#[command(name = "streak", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render one scene to an image.
+    Render(RenderArgs),
+    /// Measure every method's error against a converged reference, against its run time.
+    Study(StudyArgs),
+    /// Render every scene of a gallery folder with each method.
+    Gallery(GalleryArgs),
+}
+
+/// Options shared by every command that renders.
+#[derive(Args)]
+struct ImageArgs {
+    /// Image width in pixels (overrides the scene; the vertical field of view is kept).
+    #[arg(long, requires = "height")]
+    width: Option<u32>,
+    /// Image height in pixels (overrides the scene).
+    #[arg(long, requires = "width")]
+    height: Option<u32>,
+    /// Worker threads (default: all cores). The image is the same whatever the count.
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Rendering method.
+    #[arg(short, long, value_enum, default_value = "blur")]
+    method: Method,
+    /// Output image: .png (sRGB) or .exr (linear float).
+    #[arg(short, long, default_value = "out.png")]
+    output: PathBuf,
+    /// Also write the linear float image to this .exr file.
+    #[arg(long)]
+    exr: Option<PathBuf>,
+    /// Frames averaged by `reference`.
+    #[arg(long, default_value_t = 64)]
+    samples: usize,
+    /// Instant drawn by `static`, in normalized frame time [0, 1] (default: mid-exposure).
+    #[arg(long)]
+    time: Option<f64>,
+    /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`).
+    #[arg(long, default_value_t = DEFAULT_TOLERANCE_PX)]
+    tolerance: f64,
+    /// Print the plan, and what was left out and why, with counts.
+    #[arg(long)]
+    explain: bool,
+    #[command(flatten)]
+    image: ImageArgs,
+}
+
+#[derive(Args)]
+struct StudyArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Output folder for the CSV, the plot, the images and the cached reference.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Frames in the converged reference.
+    #[arg(long, default_value_t = 1024)]
+    reference_samples: usize,
+    /// Largest reference sample count studied (1, 2, 4, … up to this).
+    #[arg(long, default_value_t = 256)]
+    max_samples: usize,
+    /// Timed runs per setting (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    #[command(flatten)]
+    image: ImageArgs,
+}
+
+#[derive(Args)]
+struct GalleryArgs {
+    /// Folder of scene files.
+    #[arg(long, default_value = "gallery")]
+    scenes: PathBuf,
+    /// Output folder.
+    #[arg(short, long, default_value = "gallery-out")]
+    output: PathBuf,
+    /// Frames averaged by `reference`.
+    #[arg(long, default_value_t = 256)]
+    samples: usize,
+    #[command(flatten)]
+    image: ImageArgs,
+}
+
+/// Parse the command line and do the job.
+pub fn run() -> Result<()> {
+    let cli = Cli::parse();
+    let threads = match &cli.command {
+        Command::Render(a) => a.image.threads,
+        Command::Study(a) => a.image.threads,
+        Command::Gallery(a) => a.image.threads,
+    };
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            return Err(Error::Usage("--threads must be at least 1".into()));
+        }
+        pool = pool.num_threads(n);
+    }
+    let pool = pool
+        .build()
+        .map_err(|e| Error::Usage(format!("cannot start worker threads: {e}")))?;
+    pool.install(|| match cli.command {
+        Command::Render(args) => run_render(args),
+        Command::Study(args) => run_study(args),
+        Command::Gallery(args) => run_gallery(args),
+    })
+}
+
+/// Load a scene and apply the size override.
+fn load(path: &Path, image: &ImageArgs) -> Result<Scene> {
+    let mut scene = Scene::load(path)?;
+    if let (Some(w), Some(h)) = (image.width, image.height) {
+        if w == 0
+            || h == 0
+            || w > streak::scene::MAX_IMAGE_SIDE
+            || h > streak::scene::MAX_IMAGE_SIDE
+        {
+            return Err(Error::Usage(format!(
+                "--width/--height {w}×{h}: each must be between 1 and {}",
+                streak::scene::MAX_IMAGE_SIDE
+            )));
+        }
+        scene.camera = scene.camera.resized(w, h);
+    }
+    Ok(scene)
+}
+
+fn bar(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len).with_message(what.to_string());
+    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} ({eta})") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
+
+fn run_render(args: RenderArgs) -> Result<()> {
+    if !(args.tolerance > 0.0 && args.tolerance.is_finite()) {
+        return Err(Error::Usage(format!(
+            "--tolerance {}: must be a positive number of pixels",
+            args.tolerance
+        )));
+    }
+    if let Some(t) = args.time {
+        if !(0.0..=1.0).contains(&t) {
+            return Err(Error::Usage(format!(
+                "--time {t}: frame time is normalized to [0, 1]"
+            )));
+        }
+    }
+    if args.samples == 0 {
+        return Err(Error::Usage("--samples must be at least 1".into()));
+    }
+    let scene = load(&args.scene, &args.image)?;
+    let start = Instant::now();
+    let plan = Plan::new(&scene, args.tolerance);
+    let settings = Settings {
+        method: args.method,
+        time: args.time,
+        samples: args.samples,
+    };
+    let progress =
+        (args.method == Method::Reference).then(|| bar(args.samples as u64, "reference frames"));
+    let out = render(&scene, &plan, &settings, progress.as_ref());
+    if let Some(b) = progress {
+        b.finish_and_clear();
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    output::write_image(&out.image, &args.output)?;
+    if let Some(exr) = &args.exr {
+        output::write_exr(&out.image, exr)?;
+    }
+    if args.explain {
+        print!("{}", plan.explain(Some(&out.stats.culled)));
+        println!(
+            "rendered {} footprints in {} frame(s) ({} reused) in {seconds:.3} s; largest tile list {}",
+            out.stats.footprints, out.stats.frames, out.stats.reused_footprints, out.stats.max_per_tile
+        );
+    }
+    eprintln!(
+        "wrote {} ({} {}×{}, {seconds:.3} s)",
+        args.output.display(),
+        args.method.name(),
+        scene.camera.width,
+        scene.camera.height
+    );
+    Ok(())
+}
+
+fn run_study(args: StudyArgs) -> Result<()> {
+    if args.reference_samples < 2
+        || args.max_samples == 0
+        || args.max_samples >= args.reference_samples
+    {
+        return Err(Error::Usage(format!(
+            "--max-samples {} must be at least 1 and below --reference-samples {}",
+            args.max_samples, args.reference_samples
+        )));
+    }
+    let scene = load(&args.scene, &args.image)?;
+    let options = StudyOptions {
+        reference_samples: args.reference_samples,
+        max_samples: args.max_samples,
+        repeats: args.repeats,
+        out_dir: args.output.clone(),
+    };
+    let progress = bar(args.reference_samples as u64, "converged reference");
+    let points = study::run(&scene, &options, Some(&progress))?;
+    progress.finish_and_clear();
+    write_study_csv(&points, &args.output.join("study.csv"))?;
+    let title = format!(
+        "{} ({}×{}, {} surfels)",
+        args.scene.file_stem().unwrap_or_default().to_string_lossy(),
+        scene.camera.width,
+        scene.camera.height,
+        scene.surfel_count()
+    );
+    write_error_vs_time_svg(&points, &title, &args.output.join("study.svg"))?;
+    let table = study::table(&points);
+    std::fs::write(args.output.join("study.md"), &table).map_err(|e| Error::io(&args.output, e))?;
+    print!("{table}");
+    if let Some(blur) = points.iter().find(|p| {
+        p.method == Method::Blur.name() && p.knob == format!("τ={DEFAULT_TOLERANCE_PX}px")
+    }) {
+        match study::samples_to_match(&points, blur.error.rmse) {
+            Some(r) => println!(
+                "reference needs {} to beat blur {} (RMSE {:.5})",
+                r.knob, blur.knob, blur.error.rmse
+            ),
+            None => println!(
+                "no studied reference sample count beats blur {} (RMSE {:.5})",
+                blur.knob, blur.error.rmse
+            ),
+        }
+    }
+    eprintln!("wrote {}", args.output.join("study.csv").display());
+    Ok(())
+}
+
+fn run_gallery(args: GalleryArgs) -> Result<()> {
+    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&args.scenes)
+        .map_err(|e| Error::io(&args.scenes, e))?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    scenes.sort();
+    if scenes.is_empty() {
+        return Err(Error::Usage(format!(
+            "{}: no .toml scene files here",
+            args.scenes.display()
+        )));
+    }
+    for path in &scenes {
+        let scene = load(path, &args.image)?;
+        let plan = Plan::new(&scene, DEFAULT_TOLERANCE_PX);
+        let stem = path
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .to_string();
+        for method in [Method::Static, Method::Blur, Method::Reference] {
+            let settings = Settings {
+                method,
+                time: None,
+                samples: args.samples,
+            };
+            let start = Instant::now();
+            let out = render(&scene, &plan, &settings, None);
+            let file = args.output.join(format!("{stem}-{}.png", method.name()));
+            output::write_png(&out.image, &file)?;
+            eprintln!(
+                "wrote {} ({:.3} s)",
+                file.display(),
+                start.elapsed().as_secs_f64()
+            );
+        }
+    }
+    Ok(())
+}

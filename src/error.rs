@@ -1,0 +1,67 @@
+//! Errors for people: every input problem names the file, the field and what would be right.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Everything that can go wrong in streak. Library code returns this; the CLI prints it.
+#[derive(Debug)]
+pub enum Error {
+    /// A problem in a user's input file: which file, which field (or line), what is wrong.
+    Input {
+        file: PathBuf,
+        field: String,
+        message: String,
+    },
+    /// A file could not be read or written.
+    Io {
+        file: PathBuf,
+        source: std::io::Error,
+    },
+    /// A request that is invalid on its face (a bad command-line value, an impossible size).
+    Usage(String),
+}
+
+impl Error {
+    /// An input error in `file` at `field`.
+    pub fn input(file: &Path, field: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Input {
+            file: file.to_path_buf(),
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// An I/O error on `file`.
+    pub fn io(file: &Path, source: std::io::Error) -> Self {
+        Error::Io {
+            file: file.to_path_buf(),
+            source,
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Input {
+                file,
+                field,
+                message,
+            } => write!(f, "{}: {}: {}", file.display(), field, message),
+            Error::Io { file, source } => write!(f, "{}: {}", file.display(), source),
+            Error::Usage(message) => f.write_str(message),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+/// Result with streak's error.
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,106 @@
+//! Image files: sRGB PNG for looking, linear OpenEXR for analysis (and the study's cache).
+
+use crate::error::{Error, Result};
+use crate::framebuffer::Framebuffer;
+use crate::metrics::linear_to_srgb8;
+use std::path::Path;
+
+/// Write `image` by the file's extension: `.png` (8-bit sRGB) or `.exr` (linear 32-bit float).
+pub fn write_image(image: &Framebuffer, path: &Path) -> Result<()> {
+    match extension(path).as_deref() {
+        Some("png") => write_png(image, path),
+        Some("exr") => write_exr(image, path),
+        _ => Err(Error::Usage(format!(
+            "{}: unknown image type; use a .png (sRGB) or .exr (linear float) file name",
+            path.display()
+        ))),
+    }
+}
+
+fn extension(path: &Path) -> Option<String> {
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+}
+
+fn create_parent(path: &Path) -> Result<()> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+        }
+        _ => Ok(()),
+    }
+}
+
+fn image_error(path: &Path, e: image::ImageError) -> Error {
+    Error::io(path, std::io::Error::other(e))
+}
+
+/// Write an 8-bit sRGB PNG.
+pub fn write_png(image: &Framebuffer, path: &Path) -> Result<()> {
+    create_parent(path)?;
+    let bytes: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(linear_to_srgb8))
+        .collect();
+    image::save_buffer(
+        path,
+        &bytes,
+        image.width,
+        image.height,
+        image::ExtendedColorType::Rgb8,
+    )
+    .map_err(|e| image_error(path, e))
+}
+
+/// Write a linear float OpenEXR.
+pub fn write_exr(image: &Framebuffer, path: &Path) -> Result<()> {
+    create_parent(path)?;
+    let data: Vec<f32> = image.pixels.iter().flatten().copied().collect();
+    let buffer =
+        image::Rgb32FImage::from_raw(image.width, image.height, data).ok_or_else(|| {
+            Error::Usage(format!(
+                "{}: image buffer has the wrong size",
+                path.display()
+            ))
+        })?;
+    image::DynamicImage::ImageRgb32F(buffer)
+        .save_with_format(path, image::ImageFormat::OpenExr)
+        .map_err(|e| image_error(path, e))
+}
+
+/// Read a linear float OpenEXR written by [`write_exr`].
+pub fn read_exr(path: &Path) -> Result<Framebuffer> {
+    let decoded = image::open(path)
+        .map_err(|e| image_error(path, e))?
+        .into_rgb32f();
+    let (width, height) = decoded.dimensions();
+    Ok(Framebuffer {
+        width,
+        height,
+        pixels: decoded.pixels().map(|p| p.0).collect(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trips_linear_values_exactly() {
+        let mut image = Framebuffer::filled(5, 3, [0.25, 1.5, 1e-4]);
+        image.pixels[7] = [0.0, 0.123_456_78, 3.0];
+        let path = std::env::temp_dir().join(format!("streak-exr-{}.exr", std::process::id()));
+        write_exr(&image, &path).unwrap();
+        let back = read_exr(&path).unwrap();
+        std::fs::remove_file(&path).ok();
+        assert_eq!(back, image);
+    }
+
+    #[test]
+    fn unknown_extensions_are_refused_with_advice() {
+        let e =
+            write_image(&Framebuffer::filled(1, 1, [0.0; 3]), Path::new("out.jpg")).unwrap_err();
+        assert!(e.to_string().contains(".png"));
+    }
+}

@@ -1,0 +1,276 @@
+//! The plan: what a scene needs before anything is rendered, and what was left out.
+//!
+//! Still objects take the static path (one projection, no motion ellipses, and the reference
+//! projects them once for all its frames); each moving object's shutter interval is cut at its
+//! keyframes and then into as few linear sub-segments as keep every probed point's screen path
+//! within the pixel tolerance of its chord (Guan & Mueller §6 ask for bent trails under rotation)
+//! and every sub-segment shorter than [`SEGMENT_LENGTH_PER_TOLERANCE`] × tolerance; a scene with
+//! no light runs no shading. `explain` turns the plan and the render's counts into text.
+
+use crate::camera::Camera;
+use crate::project::Culled;
+use crate::scene::{Object, Scene};
+use glam::DVec2;
+
+/// A sub-segment may be at most this many tolerances long on screen. One motion ellipse stands
+/// for a whole segment with a single Gaussian; a long one differs from the true streak (a box
+/// along the motion convolved with the splat) at its ends, so shorter segments converge to it.
+pub const SEGMENT_LENGTH_PER_TOLERANCE: f64 = 32.0;
+
+/// Most sub-segments per keyframe interval: bounds the work for absurdly fast motion.
+pub const MAX_SEGMENTS_PER_INTERVAL: usize = 256;
+
+/// Surfels probed per object to measure its screen paths.
+const PROBES: usize = 64;
+
+/// Interior time samples per sub-segment when measuring chord deviation.
+const DEVIATION_SAMPLES: usize = 8;
+
+/// How one object will be drawn.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ObjectMotion {
+    /// Does not move while the shutter is open: the static path.
+    Still,
+    /// Moves: linear sub-segments [t0, t1] covering the shutter interval.
+    Moving {
+        segments: Vec<[f64; 2]>,
+        /// Longest screen path of a probed point, px.
+        path_px: f64,
+        /// Largest distance of a probed path from its sub-segment chord, px.
+        deviation_px: f64,
+        /// Longest sub-segment chord, px.
+        longest_segment_px: f64,
+        /// Whether [`MAX_SEGMENTS_PER_INTERVAL`] stopped the subdivision before the tolerance held.
+        capped: bool,
+    },
+}
+
+/// The plan for one object.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectPlan {
+    pub name: String,
+    pub surfels: usize,
+    pub motion: ObjectMotion,
+}
+
+/// The plan for a scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    pub objects: Vec<ObjectPlan>,
+    pub tolerance_px: f64,
+    /// Whether any light shades the surfels.
+    pub lit: bool,
+}
+
+impl Plan {
+    /// Decide what `scene` needs at a screen-space tolerance of `tolerance_px`.
+    #[must_use]
+    pub fn new(scene: &Scene, tolerance_px: f64) -> Plan {
+        let objects = scene
+            .objects
+            .iter()
+            .map(|object| ObjectPlan {
+                name: object.name.clone(),
+                surfels: object.surfels.len(),
+                motion: if object
+                    .motion
+                    .moves_within(scene.shutter.open, scene.shutter.close)
+                {
+                    plan_motion(
+                        &scene.camera,
+                        object,
+                        scene.shutter.open,
+                        scene.shutter.close,
+                        tolerance_px,
+                    )
+                } else {
+                    ObjectMotion::Still
+                },
+            })
+            .collect();
+        Plan {
+            objects,
+            tolerance_px,
+            lit: scene.lighting.is_lit(),
+        }
+    }
+
+    /// Whether anything moves.
+    #[must_use]
+    pub fn any_moving(&self) -> bool {
+        self.objects.iter().any(|o| o.motion != ObjectMotion::Still)
+    }
+
+    /// Human-readable account of the plan and, when given, of what rendering culled.
+    #[must_use]
+    pub fn explain(&self, culled: Option<&Culled>) -> String {
+        let mut out = String::new();
+        let mut line = |s: String| {
+            out.push_str(&s);
+            out.push('\n');
+        };
+        line(format!("plan (tolerance {} px):", self.tolerance_px));
+        for o in &self.objects {
+            match &o.motion {
+                ObjectMotion::Still => line(format!(
+                    "  {:?}: {} surfels, still while the shutter is open: static path, no motion ellipses, projected once for all reference frames",
+                    o.name, o.surfels
+                )),
+                ObjectMotion::Moving { segments, path_px, deviation_px, longest_segment_px, capped } => {
+                    line(format!(
+                        "  {:?}: {} surfels, moving: screen path up to {path_px:.1} px, {} linear sub-segment{} (chord deviation ≤ {deviation_px:.2} px, longest {longest_segment_px:.1} px)",
+                        o.name,
+                        o.surfels,
+                        segments.len(),
+                        if segments.len() == 1 { "" } else { "s" },
+                    ));
+                    if *capped {
+                        line(format!(
+                            "    capped at {MAX_SEGMENTS_PER_INTERVAL} sub-segments per keyframe interval: the tolerance does not hold"
+                        ));
+                    }
+                }
+            }
+        }
+        if !self.lit {
+            line("  lighting: none, so no shading pass (colours drawn as given)".to_string());
+        }
+        if let Some(c) = culled {
+            line("left out while rendering (per surfel and instant or sub-segment):".to_string());
+            line(format!("  back-facing: {}", c.back_facing));
+            line(format!("  off-screen: {}", c.off_screen));
+            line(format!("  behind the near plane: {}", c.behind_near));
+            line(format!(
+                "  no weight (edge-on, no shutter time): {}",
+                c.degenerate
+            ));
+        }
+        out
+    }
+}
+
+/// Screen position of a probe point at time t, if in front of the camera.
+fn screen_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<DVec2> {
+    let p = object
+        .motion
+        .pose_at(t)
+        .to_affine()
+        .transform_point3(object.surfels[probe].position);
+    camera
+        .project(camera.view.transform_point3(p))
+        .map(|(px, _)| px)
+}
+
+/// Distance of `p` from the segment a–b.
+fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+    let ab = b - a;
+    let s = if ab.length_squared() > 0.0 {
+        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    p.distance(a + ab * s)
+}
+
+/// Worst chord deviation and longest chord over probes for `k` equal pieces of [t0, t1].
+fn measure(
+    camera: &Camera,
+    object: &Object,
+    probes: &[usize],
+    t0: f64,
+    t1: f64,
+    k: usize,
+) -> (f64, f64) {
+    let (mut deviation, mut longest) = (0.0f64, 0.0f64);
+    for piece in 0..k {
+        let a = t0 + (t1 - t0) * piece as f64 / k as f64;
+        let b = t0 + (t1 - t0) * (piece + 1) as f64 / k as f64;
+        for &probe in probes {
+            let (Some(pa), Some(pb)) = (
+                screen_at(camera, object, probe, a),
+                screen_at(camera, object, probe, b),
+            ) else {
+                continue;
+            };
+            longest = longest.max(pa.distance(pb));
+            for s in 1..DEVIATION_SAMPLES {
+                let t = a + (b - a) * s as f64 / DEVIATION_SAMPLES as f64;
+                if let Some(p) = screen_at(camera, object, probe, t) {
+                    deviation = deviation.max(distance_to_segment(p, pa, pb));
+                }
+            }
+        }
+    }
+    (deviation, longest)
+}
+
+fn plan_motion(
+    camera: &Camera,
+    object: &Object,
+    open: f64,
+    close: f64,
+    tolerance_px: f64,
+) -> ObjectMotion {
+    let stride = object.surfels.len().div_ceil(PROBES).max(1);
+    let probes: Vec<usize> = (0..object.surfels.len()).step_by(stride).collect();
+    let mut breaks: Vec<f64> = vec![open];
+    breaks.extend(object.motion.breaks_within(open, close));
+    breaks.push(close);
+
+    let (mut segments, mut deviation_px, mut longest_segment_px, mut capped) =
+        (Vec::new(), 0.0f64, 0.0f64, false);
+    for pair in breaks.windows(2) {
+        let (t0, t1) = (pair[0], pair[1]);
+        let mut k = 1;
+        let (deviation, longest) = loop {
+            let (deviation, longest) = measure(camera, object, &probes, t0, t1, k);
+            let max_length = SEGMENT_LENGTH_PER_TOLERANCE * tolerance_px;
+            let holds = deviation <= tolerance_px && longest <= max_length;
+            if holds || k >= MAX_SEGMENTS_PER_INTERVAL {
+                capped |= !holds;
+                break (deviation, longest);
+            }
+            // Chord deviation of a smooth path falls as 1/k², chord length as 1/k: jump to the
+            // count both predict, and at least one more.
+            let factor = (deviation / tolerance_px).sqrt().max(longest / max_length);
+            let next = (k as f64 * factor).ceil();
+            k = if next.is_finite() {
+                (next as usize).max(k + 1)
+            } else {
+                MAX_SEGMENTS_PER_INTERVAL
+            }
+            .min(MAX_SEGMENTS_PER_INTERVAL);
+        };
+        deviation_px = deviation_px.max(deviation);
+        longest_segment_px = longest_segment_px.max(longest);
+        segments.extend((0..k).map(|i| {
+            [
+                t0 + (t1 - t0) * i as f64 / k as f64,
+                t0 + (t1 - t0) * (i + 1) as f64 / k as f64,
+            ]
+        }));
+    }
+    let path_px = probes
+        .iter()
+        .map(|&probe| {
+            let samples = 4 * segments.len().max(16);
+            (0..samples)
+                .filter_map(|i| {
+                    let ta = open + (close - open) * i as f64 / samples as f64;
+                    let tb = open + (close - open) * (i + 1) as f64 / samples as f64;
+                    Some(
+                        screen_at(camera, object, probe, ta)?
+                            .distance(screen_at(camera, object, probe, tb)?),
+                    )
+                })
+                .sum::<f64>()
+        })
+        .fold(0.0, f64::max);
+    ObjectMotion::Moving {
+        segments,
+        path_px,
+        deviation_px,
+        longest_segment_px,
+        capped,
+    }
+}

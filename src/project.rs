@@ -1,0 +1,267 @@
+//! The shared projection stage: a surfel at an instant → what the camera sees of it.
+//!
+//! Every splat renderer asks this module where a surfel is on screen at time t, with which
+//! screen covariance (Σ = J W V Wᵀ Jᵀ, DESIGN.md "Projected splat covariance"; the pre-filter
+//! is added by the caller, who may add motion first), how much screen area it covers, how deep
+//! it is and which colour it has after shading. This is the only visibility gate before the
+//! rasterizer: points behind the near plane are not projected, and the caller culls back faces
+//! and off-screen footprints, counting each in [`Culled`].
+
+use crate::camera::Camera;
+use crate::geometry::Surfel;
+use crate::motion::Pose;
+use crate::raster::{Footprint, Rejection, ScreenSplat, Sym2, PREFILTER_VARIANCE_PX2};
+use crate::scene::{Lighting, Object};
+use glam::{DAffine3, DMat3, DVec2, DVec3};
+use rayon::prelude::*;
+
+/// Depth tolerance of the ternary depth test, in standard deviations of the surfel's Gaussian:
+/// splats of one surface within this distance blend, farther ones are another surface. Surfaces
+/// closer together than this (thin shells) need a finer sampling.
+pub const DEPTH_TOLERANCE_SIGMAS: f64 = 3.0;
+
+/// Object → camera transforms of one object at one instant.
+#[derive(Clone, Copy, Debug)]
+pub struct Instant {
+    to_view: DAffine3,
+    /// Object → world rotation, for shading normals.
+    rotation: DMat3,
+}
+
+impl Instant {
+    /// The transforms for `pose` seen by `camera`.
+    #[must_use]
+    pub fn new(camera: &Camera, pose: &Pose) -> Self {
+        Instant {
+            to_view: camera.view * pose.to_affine(),
+            rotation: pose.rotation_matrix(),
+        }
+    }
+}
+
+/// A surfel as seen at one instant: its screen splat (covariance without the pre-filter, weight
+/// equal to the screen area it covers) and whether it faces the camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfelView {
+    pub splat: ScreenSplat,
+    pub front_facing: bool,
+}
+
+/// View of `surfel` at `instant`, or `None` when its centre is not in front of the near plane.
+#[must_use]
+pub fn view_surfel(
+    camera: &Camera,
+    instant: &Instant,
+    lighting: &Lighting,
+    surfel: &Surfel,
+) -> Option<SurfelView> {
+    let p_view = instant.to_view.transform_point3(surfel.position);
+    let (center, depth) = camera.project(p_view)?;
+    let u_view = instant.to_view.transform_vector3(surfel.axis_u);
+    let v_view = instant.to_view.transform_vector3(surfel.axis_v);
+    let normal_view = instant.to_view.transform_vector3(surfel.normal);
+    let jacobian = camera.jacobian(p_view);
+    let (ju, jv) = (jacobian.apply(u_view), jacobian.apply(v_view));
+    // Ratio of the axes' parallelogram areas on screen and in object space = the area scale.
+    let object_area = surfel.axis_u.cross(surfel.axis_v).length();
+    let depth_tolerance = DEPTH_TOLERANCE_SIGMAS * u_view.length().max(v_view.length());
+    Some(SurfelView {
+        splat: ScreenSplat {
+            center,
+            covariance: Sym2::outer(ju) + Sym2::outer(jv),
+            weight: surfel.area * ju.perp_dot(jv).abs() / object_area,
+            colour: lighting.shade(
+                surfel.colour,
+                (instant.rotation * surfel.normal).normalize_or_zero(),
+            ),
+            depth,
+            depth_gradient: plane_depth_gradient(
+                camera,
+                p_view,
+                normal_view,
+                depth,
+                depth_tolerance,
+            ),
+            depth_tolerance,
+        },
+        front_facing: normal_view.dot(p_view) < 0.0,
+    })
+}
+
+/// Screen gradient of the depth of the plane through `p_view` with normal `normal_view`.
+///
+/// Along the ray through pixel offset (X, Y) from the image centre the plane lies at depth
+/// D = (n·p) / (n_x X/f − n_y Y/f − n_z), so at the splat's centre ∂D/∂x = −D² n_x / (f n·p)
+/// and ∂D/∂y = D² n_y / (f n·p). Near edge-on (n·p → 0) the plane is steep and the splat carries
+/// almost no weight; the gradient is capped at `cap` per pixel so that it stays finite.
+fn plane_depth_gradient(
+    camera: &Camera,
+    p_view: DVec3,
+    normal_view: DVec3,
+    depth: f64,
+    cap: f64,
+) -> DVec2 {
+    let k = normal_view.dot(p_view);
+    let gradient =
+        DVec2::new(-normal_view.x, normal_view.y) * (depth * depth / (camera.focal_px * k));
+    if gradient.is_finite() {
+        gradient.clamp_length_max(cap)
+    } else {
+        DVec2::ZERO
+    }
+}
+
+/// What the projection and culling left out, by reason.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Culled {
+    /// Facing away from the camera (for the whole interval, for moving renderers).
+    pub back_facing: usize,
+    /// Entirely outside the image.
+    pub off_screen: usize,
+    /// Centre behind the near plane.
+    pub behind_near: usize,
+    /// No weight: seen exactly edge-on, no shutter time, or not finite.
+    pub degenerate: usize,
+}
+
+/// Why one surfel (or one of its segments) made no footprint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cull {
+    BackFacing,
+    BehindNear,
+    Raster(Rejection),
+}
+
+/// Collect per-surfel results in order (deterministic), counting what was left out.
+pub fn gather(
+    results: Vec<Result<Footprint, Cull>>,
+    footprints: &mut Vec<Footprint>,
+    culled: &mut Culled,
+) {
+    for r in results {
+        match r {
+            Ok(f) => footprints.push(f),
+            Err(Cull::BackFacing) => culled.back_facing += 1,
+            Err(Cull::BehindNear) => culled.behind_near += 1,
+            Err(Cull::Raster(Rejection::OffScreen)) => culled.off_screen += 1,
+            Err(Cull::Raster(Rejection::Degenerate)) => culled.degenerate += 1,
+        }
+    }
+}
+
+/// The footprint of a surfel view drawn sharp (the static EWA splat).
+pub fn static_footprint(camera: &Camera, view: &SurfelView) -> Result<Footprint, Cull> {
+    if !view.front_facing {
+        return Err(Cull::BackFacing);
+    }
+    let splat = ScreenSplat {
+        covariance: view.splat.covariance + Sym2::isotropic(PREFILTER_VARIANCE_PX2),
+        ..view.splat
+    };
+    splat
+        .footprint(camera.width, camera.height)
+        .map_err(Cull::Raster)
+}
+
+/// Sharp footprints of every surfel of `object` at time `t`, appended to `footprints`.
+pub fn object_footprints_at(
+    camera: &Camera,
+    lighting: &Lighting,
+    object: &Object,
+    t: f64,
+    footprints: &mut Vec<Footprint>,
+    culled: &mut Culled,
+) {
+    let instant = Instant::new(camera, &object.motion.pose_at(t));
+    let results: Vec<_> = object
+        .surfels
+        .par_iter()
+        .map(|s| match view_surfel(camera, &instant, lighting, s) {
+            Some(view) => static_footprint(camera, &view),
+            None => Err(Cull::BehindNear),
+        })
+        .collect();
+    gather(results, footprints, culled);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> Camera {
+        Camera::look_at(
+            DVec3::new(0.0, 0.0, 5.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            45.0,
+            200,
+            200,
+            0.01,
+        )
+    }
+
+    fn surfel(normal: DVec3) -> Surfel {
+        Surfel::isotropic(DVec3::ZERO, normal, 0.01, None, [1.0; 3])
+    }
+
+    #[test]
+    fn facing_surfel_area_scales_by_focal_over_depth_squared() {
+        let cam = camera();
+        let instant = Instant::new(&cam, &Pose::IDENTITY);
+        let view = view_surfel(&cam, &instant, &Lighting::default(), &surfel(DVec3::Z)).unwrap();
+        let scale = cam.focal_px / 5.0;
+        assert!((view.splat.weight - 0.01 * scale * scale).abs() < 1e-9 * view.splat.weight);
+        assert!(view.front_facing);
+        assert!((view.splat.center - DVec2::new(100.0, 100.0)).length() < 1e-9);
+    }
+
+    #[test]
+    fn tilted_surfel_area_shrinks_by_the_cosine_and_edge_on_vanishes() {
+        let cam = camera();
+        let instant = Instant::new(&cam, &Pose::IDENTITY);
+        let lighting = Lighting::default();
+        let facing = view_surfel(&cam, &instant, &lighting, &surfel(DVec3::Z))
+            .unwrap()
+            .splat
+            .weight;
+        let tilted = DVec3::new(0.6, 0.0, 0.8);
+        let view = view_surfel(&cam, &instant, &lighting, &surfel(tilted)).unwrap();
+        // At the image centre the projection is orthographic to first order: area × cos θ.
+        assert!((view.splat.weight / facing - 0.8).abs() < 1e-9);
+        // Exactly edge-on counts as not facing; a hair off edge-on faces but carries no weight.
+        let edge_on = view_surfel(&cam, &instant, &lighting, &surfel(DVec3::X)).unwrap();
+        assert!(edge_on.splat.weight < 1e-12 * facing);
+        assert_eq!(static_footprint(&cam, &edge_on), Err(Cull::BackFacing));
+        let grazing = view_surfel(
+            &cam,
+            &instant,
+            &lighting,
+            &surfel(DVec3::new(1.0, 0.0, 1e-14).normalize()),
+        )
+        .unwrap();
+        assert_eq!(
+            static_footprint(&cam, &grazing),
+            Err(Cull::Raster(Rejection::Degenerate))
+        );
+    }
+
+    #[test]
+    fn back_facing_and_behind_camera_surfels_are_culled() {
+        let cam = camera();
+        let lighting = Lighting::default();
+        let instant = Instant::new(&cam, &Pose::IDENTITY);
+        let back = view_surfel(&cam, &instant, &lighting, &surfel(-DVec3::Z)).unwrap();
+        assert_eq!(static_footprint(&cam, &back), Err(Cull::BackFacing));
+        let behind = Pose {
+            translation: DVec3::new(0.0, 0.0, 6.0),
+            ..Pose::IDENTITY
+        };
+        assert!(view_surfel(
+            &cam,
+            &Instant::new(&cam, &behind),
+            &lighting,
+            &surfel(DVec3::Z)
+        )
+        .is_none());
+    }
+}

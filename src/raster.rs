@@ -1,0 +1,603 @@
+//! The shared rasterizer: screen-space Gaussian footprints → tiles → depth order → pixels.
+//!
+//! Every splat renderer ends here. A footprint is an elliptical Gaussian in pixels whose integral
+//! is the (time-weighted) screen area its surfel covers. Footprints are sorted once by depth, binned
+//! into 16×16 tiles in that order (so each tile's list is depth-sorted), and tiles are rendered in
+//! parallel; a tile owns its pixels, so there are no locks, and the work inside a tile is
+//! sequential, so the image bits do not depend on the thread count.
+//!
+//! Per pixel, footprints are grouped into surfaces by a ternary depth test (a footprint within the
+//! depth tolerance of the nearest one of the open group belongs to the same surface, Zwicker et al.'s
+//! ε-z-buffer). A closed group contributes its normalized colour Σwc/Σw with coverage α = min(1, Σw)
+//! and is composited front to back; what is left of the transmittance shows the background. With
+//! motion ellipses, Σw is the fraction of the shutter time the surface covers the pixel, so the
+//! background is blended by uncovered time, as Guan & Mueller §3.3 and Heinzle §5.4 ask.
+
+use crate::framebuffer::Framebuffer;
+use glam::DVec2;
+use rayon::prelude::*;
+
+/// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², DESIGN.md).
+/// 0.3 px² keeps every footprint at least ~0.55 px wide, so sampling at pixel centres sums a
+/// Gaussian to within 0.3 % of its integral (Poisson summation: exp(−2π²·0.3)).
+pub const PREFILTER_VARIANCE_PX2: f64 = 0.3;
+
+/// Footprints are evaluated out to this many standard deviations (the Mahalanobis radius). A 2D
+/// Gaussian holds exp(−r²/2) of its weight beyond radius r (1.1 % at 3σ); the amplitude is raised
+/// by [`TRUNCATION_GAIN`] so that the truncated footprint still integrates to its weight, which
+/// keeps coverage of a densely sampled surface at 1 and energy exact under motion.
+pub const CUTOFF_SIGMAS: f64 = 3.0;
+
+/// 1 / (1 − exp(−r²/2)) for r = [`CUTOFF_SIGMAS`]: the mass a truncated 2D Gaussian must regain.
+pub const TRUNCATION_GAIN: f64 = 1.0 / (1.0 - 0.011_108_996_538_242_306);
+
+/// The cut-off as a squared Mahalanobis distance.
+const CUTOFF_Q: f32 = (CUTOFF_SIGMAS * CUTOFF_SIGMAS) as f32;
+
+/// Tile side in pixels.
+pub const TILE_PX: u32 = 16;
+
+/// Once a pixel's transmittance falls below this, farther surfaces cannot change its 8-bit value.
+const OPAQUE_TRANSMITTANCE: f32 = 1e-4;
+
+/// A symmetric 2×2 matrix (a covariance or its inverse, the conic).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sym2 {
+    pub xx: f64,
+    pub xy: f64,
+    pub yy: f64,
+}
+
+impl Sym2 {
+    /// σ² I.
+    #[must_use]
+    pub fn isotropic(variance: f64) -> Self {
+        Sym2 {
+            xx: variance,
+            xy: 0.0,
+            yy: variance,
+        }
+    }
+
+    /// v vᵀ.
+    #[must_use]
+    pub fn outer(v: DVec2) -> Self {
+        Sym2 {
+            xx: v.x * v.x,
+            xy: v.x * v.y,
+            yy: v.y * v.y,
+        }
+    }
+
+    #[must_use]
+    pub fn det(&self) -> f64 {
+        self.xx * self.yy - self.xy * self.xy
+    }
+
+    #[must_use]
+    pub fn scaled(&self, k: f64) -> Self {
+        Sym2 {
+            xx: self.xx * k,
+            xy: self.xy * k,
+            yy: self.yy * k,
+        }
+    }
+
+    /// The inverse, or `None` when singular or not finite.
+    #[must_use]
+    pub fn inverse(&self) -> Option<Self> {
+        let det = self.det();
+        if !(det > 0.0 && det.is_finite()) {
+            return None;
+        }
+        Some(Sym2 {
+            xx: self.yy / det,
+            xy: -self.xy / det,
+            yy: self.xx / det,
+        })
+    }
+}
+
+impl std::ops::Add for Sym2 {
+    type Output = Sym2;
+    fn add(self, o: Sym2) -> Sym2 {
+        Sym2 {
+            xx: self.xx + o.xx,
+            xy: self.xy + o.xy,
+            yy: self.yy + o.yy,
+        }
+    }
+}
+
+/// A screen-space elliptical Gaussian ready to rasterize.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Footprint {
+    /// Centre in pixels.
+    pub center: [f32; 2],
+    /// Inverse covariance (xx, xy, yy).
+    pub conic: [f32; 3],
+    /// Value at the centre: weight / (2π √det Σ).
+    pub amplitude: f32,
+    /// Linear RGB.
+    pub colour: [f32; 3],
+    /// Camera-space depth at the centre, used for ordering.
+    pub depth: f32,
+    /// Screen-space gradient of the splat plane's depth (per px), so the ternary depth test
+    /// compares the depths of the splat planes at each pixel rather than at their centres: on a
+    /// surface seen at a grazing angle, centres of one surface's splats differ in depth far more
+    /// than their planes do at a common pixel.
+    pub depth_gradient: [f32; 2],
+    /// Depth distance within which another footprint counts as the same surface.
+    pub depth_tolerance: f32,
+    /// Pixel bounds [x0, y0, x1, y1), clipped to the image.
+    pub bounds: [u32; 4],
+}
+
+/// Why a footprint was not made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rejection {
+    /// Its whole extent lies outside the image.
+    OffScreen,
+    /// It carries no weight (seen edge-on, or no shutter time) or its numbers are not finite.
+    Degenerate,
+}
+
+/// An elliptical Gaussian on screen with the surface it stands for, in f64, before it is clipped
+/// and packed for rasterization.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScreenSplat {
+    /// Centre in pixels.
+    pub center: DVec2,
+    /// Covariance in px².
+    pub covariance: Sym2,
+    /// Integral of the Gaussian over the plane: the screen area (times shutter mass) it covers.
+    pub weight: f64,
+    /// Linear RGB.
+    pub colour: [f32; 3],
+    /// Camera-space depth at the centre.
+    pub depth: f64,
+    /// Screen gradient of the splat plane's depth, per px.
+    pub depth_gradient: DVec2,
+    /// Depth distance within which another splat counts as the same surface.
+    pub depth_tolerance: f64,
+}
+
+impl ScreenSplat {
+    /// Clip to a `width`×`height` image and pack for the rasterizer. The covariance must already
+    /// include the pre-filter.
+    pub fn footprint(&self, width: u32, height: u32) -> Result<Footprint, Rejection> {
+        let conic = self.covariance.inverse().ok_or(Rejection::Degenerate)?;
+        let amplitude =
+            TRUNCATION_GAIN * self.weight / (std::f64::consts::TAU * self.covariance.det().sqrt());
+        if !(amplitude > 1e-12
+            && amplitude.is_finite()
+            && self.center.is_finite()
+            && self.depth.is_finite()
+            && self.depth_gradient.is_finite())
+        {
+            return Err(Rejection::Degenerate);
+        }
+        let (center, covariance) = (self.center, self.covariance);
+        let half = DVec2::new(covariance.xx.sqrt(), covariance.yy.sqrt()) * CUTOFF_SIGMAS;
+        let clip = |v: f64, max: u32| v.clamp(0.0, f64::from(max)) as u32;
+        let x0 = clip((center.x - half.x).floor(), width);
+        let x1 = clip((center.x + half.x).ceil() + 1.0, width);
+        let y0 = clip((center.y - half.y).floor(), height);
+        let y1 = clip((center.y + half.y).ceil() + 1.0, height);
+        if x0 >= x1 || y0 >= y1 {
+            return Err(Rejection::OffScreen);
+        }
+        Ok(Footprint {
+            center: [center.x as f32, center.y as f32],
+            conic: [conic.xx as f32, conic.xy as f32, conic.yy as f32],
+            amplitude: amplitude as f32,
+            colour: self.colour,
+            depth: self.depth as f32,
+            depth_gradient: self.depth_gradient.as_vec2().to_array(),
+            depth_tolerance: self.depth_tolerance as f32,
+            bounds: [x0, y0, x1, y1],
+        })
+    }
+}
+
+impl Footprint {
+    /// The footprint's value at the centre of pixel (x, y), zero beyond the cut-off.
+    #[inline]
+    #[must_use]
+    pub fn weight_at(&self, x: u32, y: u32) -> f32 {
+        let dx = x as f32 + 0.5 - self.center[0];
+        let dy = y as f32 + 0.5 - self.center[1];
+        let q = self.conic[0] * dx * dx + 2.0 * self.conic[1] * dx * dy + self.conic[2] * dy * dy;
+        if q > CUTOFF_Q {
+            0.0
+        } else {
+            self.amplitude * (-0.5 * q).exp()
+        }
+    }
+
+    /// Depth of the splat plane at the centre of pixel (x, y).
+    #[inline]
+    #[must_use]
+    pub fn depth_at(&self, x: u32, y: u32) -> f32 {
+        let dx = x as f32 + 0.5 - self.center[0];
+        let dy = y as f32 + 0.5 - self.center[1];
+        self.depth + self.depth_gradient[0] * dx + self.depth_gradient[1] * dy
+    }
+
+    /// Pixel columns [x0, x1) of row `y` whose centres lie inside the cut-off ellipse (clipped
+    /// to the bounds): an elongated, tilted motion ellipse fills a small part of its bounding box.
+    #[inline]
+    #[must_use]
+    pub fn row_span(&self, y: u32) -> (u32, u32) {
+        let [a, b, c] = self.conic;
+        let dy = y as f32 + 0.5 - self.center[1];
+        // a·dx² + 2b·dy·dx + c·dy² ≤ Q  ⇔  dx between the roots of this quadratic.
+        let discriminant = (b * dy) * (b * dy) - a * (c * dy * dy - CUTOFF_Q);
+        if !(discriminant >= 0.0 && a > 0.0) {
+            return (0, 0);
+        }
+        let half_width = discriminant.sqrt() / a;
+        let centre = self.center[0] - 0.5 - b * dy / a;
+        let lo = (centre - half_width).ceil().max(self.bounds[0] as f32);
+        let hi = ((centre + half_width).floor() + 1.0).min(self.bounds[2] as f32);
+        if hi > lo {
+            (lo as u32, hi as u32)
+        } else {
+            (0, 0)
+        }
+    }
+}
+
+/// What the rasterizer did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RasterStats {
+    /// Footprints rasterized.
+    pub footprints: usize,
+    /// Footprint–tile pairs binned.
+    pub tile_entries: usize,
+    /// Largest number of footprints in one tile.
+    pub max_per_tile: usize,
+}
+
+/// Front-to-back compositing state of one pixel.
+#[derive(Clone, Copy)]
+struct PixelState {
+    colour: [f32; 3],
+    transmittance: f32,
+    group_colour: [f32; 3],
+    group_weight: f32,
+    group_depth: f32,
+    group_tolerance: f32,
+}
+
+impl PixelState {
+    const EMPTY: PixelState = PixelState {
+        colour: [0.0; 3],
+        transmittance: 1.0,
+        group_colour: [0.0; 3],
+        group_weight: 0.0,
+        group_depth: f32::NEG_INFINITY,
+        group_tolerance: 0.0,
+    };
+
+    fn add(&mut self, f: &Footprint, w: f32, depth: f32) {
+        let same_surface = depth - self.group_depth <= self.group_tolerance.max(f.depth_tolerance);
+        if !same_surface {
+            self.close_group();
+            self.group_depth = depth;
+            self.group_tolerance = f.depth_tolerance;
+        }
+        for c in 0..3 {
+            self.group_colour[c] += w * f.colour[c];
+        }
+        self.group_weight += w;
+    }
+
+    fn close_group(&mut self) {
+        if self.group_weight > 0.0 {
+            let alpha = self.group_weight.min(1.0);
+            let k = self.transmittance * alpha / self.group_weight;
+            for c in 0..3 {
+                self.colour[c] += k * self.group_colour[c];
+            }
+            self.transmittance *= 1.0 - alpha;
+        }
+        self.group_colour = [0.0; 3];
+        self.group_weight = 0.0;
+    }
+
+    fn finish(mut self, background: [f32; 3]) -> [f32; 3] {
+        self.close_group();
+        let t = self.transmittance;
+        [
+            self.colour[0] + t * background[0],
+            self.colour[1] + t * background[1],
+            self.colour[2] + t * background[2],
+        ]
+    }
+}
+
+/// Rasterize `footprints` over `background` into a `width`×`height` image.
+#[must_use]
+pub fn rasterize(
+    footprints: &[Footprint],
+    width: u32,
+    height: u32,
+    background: [f32; 3],
+) -> (Framebuffer, RasterStats) {
+    let tiles_x = width.div_ceil(TILE_PX) as usize;
+    let tiles_y = height.div_ceil(TILE_PX) as usize;
+    let tile_range = |f: &Footprint| {
+        let [x0, y0, x1, y1] = f.bounds;
+        let t = TILE_PX;
+        (
+            (x0 / t) as usize..(x1 - 1) as usize / t as usize + 1,
+            (y0 / t) as usize..(y1 - 1) as usize / t as usize + 1,
+        )
+    };
+
+    // Depth order with the index as tie-break: a total order, so the sort is deterministic.
+    let mut order: Vec<u32> = (0..footprints.len() as u32).collect();
+    order.par_sort_unstable_by(|&a, &b| {
+        footprints[a as usize]
+            .depth
+            .total_cmp(&footprints[b as usize].depth)
+            .then(a.cmp(&b))
+    });
+
+    // Bin into a compressed per-tile list (counts, offsets, entries), in depth order.
+    let mut starts = vec![0usize; tiles_x * tiles_y + 1];
+    for f in footprints {
+        let (xs, ys) = tile_range(f);
+        for ty in ys {
+            for tx in xs.clone() {
+                starts[ty * tiles_x + tx + 1] += 1;
+            }
+        }
+    }
+    for i in 1..starts.len() {
+        starts[i] += starts[i - 1];
+    }
+    let mut fill = starts.clone();
+    let mut entries = vec![0u32; starts[tiles_x * tiles_y]];
+    for &index in &order {
+        let (xs, ys) = tile_range(&footprints[index as usize]);
+        for ty in ys {
+            for tx in xs.clone() {
+                let slot = &mut fill[ty * tiles_x + tx];
+                entries[*slot] = index;
+                *slot += 1;
+            }
+        }
+    }
+
+    let blocks: Vec<Vec<[f32; 3]>> = (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .map(|tile| {
+            let (tx, ty) = ((tile % tiles_x) as u32, (tile / tiles_x) as u32);
+            let list = &entries[starts[tile]..starts[tile + 1]];
+            render_tile(
+                footprints,
+                list,
+                tx * TILE_PX,
+                ty * TILE_PX,
+                width,
+                height,
+                background,
+            )
+        })
+        .collect();
+
+    let mut image = Framebuffer::filled(width, height, background);
+    for (tile, block) in blocks.iter().enumerate() {
+        let (x0, y0) = (
+            (tile % tiles_x) as u32 * TILE_PX,
+            (tile / tiles_x) as u32 * TILE_PX,
+        );
+        let w = TILE_PX.min(width - x0);
+        for (row, chunk) in block.chunks(w as usize).enumerate() {
+            let start = (y0 as usize + row) * width as usize + x0 as usize;
+            image.pixels[start..start + w as usize].copy_from_slice(chunk);
+        }
+    }
+    let stats = RasterStats {
+        footprints: footprints.len(),
+        tile_entries: entries.len(),
+        max_per_tile: starts.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0),
+    };
+    (image, stats)
+}
+
+/// Composite one tile's depth-sorted footprints; returns the tile's pixels row by row.
+fn render_tile(
+    footprints: &[Footprint],
+    list: &[u32],
+    x0: u32,
+    y0: u32,
+    width: u32,
+    height: u32,
+    background: [f32; 3],
+) -> Vec<[f32; 3]> {
+    let x1 = (x0 + TILE_PX).min(width);
+    let y1 = (y0 + TILE_PX).min(height);
+    let w = (x1 - x0) as usize;
+    let mut pixels = vec![PixelState::EMPTY; w * (y1 - y0) as usize];
+    for &index in list {
+        let f = &footprints[index as usize];
+        let [_, fy0, _, fy1] = f.bounds;
+        for y in fy0.max(y0)..fy1.min(y1) {
+            let row = (y - y0) as usize * w;
+            let (sx0, sx1) = f.row_span(y);
+            for x in sx0.max(x0)..sx1.min(x1) {
+                let state = &mut pixels[row + (x - x0) as usize];
+                if state.transmittance < OPAQUE_TRANSMITTANCE {
+                    continue;
+                }
+                let weight = f.weight_at(x, y);
+                if weight > 0.0 {
+                    state.add(f, weight, f.depth_at(x, y));
+                }
+            }
+        }
+    }
+    pixels.into_iter().map(|p| p.finish(background)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gaussian(
+        center: DVec2,
+        covariance: Sym2,
+        weight: f64,
+        colour: [f32; 3],
+        depth: f64,
+    ) -> ScreenSplat {
+        ScreenSplat {
+            center,
+            covariance,
+            weight,
+            colour,
+            depth,
+            depth_gradient: DVec2::ZERO,
+            depth_tolerance: 0.01,
+        }
+    }
+
+    fn splat(center: DVec2, variance: f64, weight: f64, colour: [f32; 3], depth: f64) -> Footprint {
+        gaussian(center, Sym2::isotropic(variance), weight, colour, depth)
+            .footprint(64, 64)
+            .unwrap()
+    }
+
+    #[test]
+    fn row_spans_cover_exactly_the_pixels_inside_the_cut_off() {
+        let covariance = Sym2 {
+            xx: 90.0,
+            xy: 55.0,
+            yy: 40.0,
+        };
+        let f = gaussian(DVec2::new(30.2, 27.9), covariance, 1.0, [1.0; 3], 1.0)
+            .footprint(64, 64)
+            .unwrap();
+        for y in 0..64 {
+            let (x0, x1) = f.row_span(y);
+            for x in 0..64 {
+                let dx = x as f32 + 0.5 - f.center[0];
+                let dy = y as f32 + 0.5 - f.center[1];
+                let q = f.conic[0] * dx * dx + 2.0 * f.conic[1] * dx * dy + f.conic[2] * dy * dy;
+                // Points on the cut-off itself may round either way in f32; all others must agree.
+                if (q - CUTOFF_Q).abs() > 1e-3 {
+                    assert_eq!(
+                        q <= CUTOFF_Q,
+                        (x0..x1).contains(&x),
+                        "pixel ({x}, {y}), span {x0}..{x1}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn pixel_samples_of_a_footprint_sum_to_its_weight() {
+        let f = splat(
+            DVec2::new(20.3, 31.7),
+            PREFILTER_VARIANCE_PX2,
+            0.8,
+            [1.0; 3],
+            1.0,
+        );
+        let sum: f32 = (0..64)
+            .flat_map(|y| (0..64).map(move |x| (x, y)))
+            .map(|(x, y)| f.weight_at(x, y))
+            .sum();
+        // Pixel-centre sampling of the narrowest allowed Gaussian: 0.3 % (see PREFILTER_VARIANCE_PX2).
+        assert!((sum - 0.8).abs() < 0.8 * 0.004, "{sum}");
+    }
+
+    #[test]
+    fn a_nearer_opaque_surface_hides_a_farther_one() {
+        let red = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [1.0, 0.0, 0.0], 1.0);
+        let blue = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [0.0, 0.0, 1.0], 2.0);
+        for list in [vec![red, blue], vec![blue, red]] {
+            let (image, _) = rasterize(&list, 64, 64, [0.0; 3]);
+            let p = image.pixels[32 * 64 + 32];
+            assert!(p[0] > 0.999 && p[2] < 1e-3, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn splats_of_one_surface_blend_by_normalized_weight() {
+        let mut a = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [1.0, 0.0, 0.0], 1.0);
+        let mut b = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [0.0, 0.0, 1.0], 1.005);
+        a.depth_tolerance = 0.01;
+        b.depth_tolerance = 0.01;
+        let (image, _) = rasterize(&[a, b], 64, 64, [0.0; 3]);
+        let p = image.pixels[32 * 64 + 32];
+        assert!(
+            (p[0] - 0.5).abs() < 1e-5 && (p[2] - 0.5).abs() < 1e-5,
+            "{p:?}"
+        );
+    }
+
+    #[test]
+    fn partial_coverage_blends_with_the_background() {
+        // A footprint spread far wider than the image, whose value is ≈ 0.25 on every pixel.
+        let f = splat(
+            DVec2::new(32.0, 32.0),
+            1e6,
+            0.25 * std::f64::consts::TAU * 1e6 / TRUNCATION_GAIN,
+            [1.0, 0.0, 0.0],
+            1.0,
+        );
+        let (image, _) = rasterize(&[f], 64, 64, [0.0, 0.0, 1.0]);
+        let p = image.pixels[0];
+        assert!(
+            (p[0] - 0.25).abs() < 1e-3 && (p[2] - 0.75).abs() < 1e-3,
+            "{p:?}"
+        );
+    }
+
+    #[test]
+    fn off_screen_and_degenerate_footprints_are_rejected() {
+        let off = gaussian(
+            DVec2::new(-100.0, 10.0),
+            Sym2::isotropic(1.0),
+            1.0,
+            [1.0; 3],
+            1.0,
+        );
+        assert_eq!(off.footprint(64, 64), Err(Rejection::OffScreen));
+        let flat = gaussian(
+            DVec2::new(10.0, 10.0),
+            Sym2::outer(DVec2::X),
+            1.0,
+            [1.0; 3],
+            1.0,
+        );
+        assert_eq!(flat.footprint(64, 64), Err(Rejection::Degenerate));
+        let nan = gaussian(
+            DVec2::new(f64::NAN, 10.0),
+            Sym2::isotropic(1.0),
+            1.0,
+            [1.0; 3],
+            1.0,
+        );
+        assert_eq!(nan.footprint(64, 64), Err(Rejection::Degenerate));
+    }
+
+    #[test]
+    fn image_sizes_that_are_not_multiples_of_the_tile_work() {
+        let f = gaussian(
+            DVec2::new(36.0, 20.0),
+            Sym2::isotropic(4.0),
+            50.0,
+            [1.0; 3],
+            1.0,
+        );
+        let (image, _) = rasterize(&[f.footprint(37, 21).unwrap()], 37, 21, [0.0; 3]);
+        assert_eq!(image.pixels.len(), 37 * 21);
+        assert!(image.pixels[20 * 37 + 36][0] > 0.5);
+    }
+}

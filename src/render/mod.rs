@@ -1,0 +1,141 @@
+//! The splat renderers. All of them share projection ([`crate::project`]) and rasterization
+//! ([`crate::raster`]); they differ only in which footprints they make:
+//!
+//! - [`Method::Static`]: EWA surface splatting at one instant;
+//! - [`Method::Reference`]: the shutter-weighted average of N static frames (the accumulation
+//!   buffer), the ground truth every other method is measured against;
+//! - [`Method::Blur`]: one pass of motion ellipses (Guan & Mueller §3.3).
+
+mod blur;
+mod reference;
+
+use crate::framebuffer::Framebuffer;
+use crate::plan::Plan;
+use crate::project::{object_footprints_at, Culled};
+use crate::raster::{rasterize, Footprint, RasterStats};
+use crate::scene::Scene;
+use indicatif::ProgressBar;
+use serde::Deserialize;
+
+/// A rendering method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Sharp EWA splatting at one instant.
+    Static,
+    /// Motion ellipses from summed covariances, one pass.
+    Blur,
+    /// Average of N static frames at stratified shutter times.
+    Reference,
+}
+
+impl Method {
+    /// The name used on the command line and in reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Static => "static",
+            Method::Blur => "blur",
+            Method::Reference => "reference",
+        }
+    }
+}
+
+/// What to render and at which quality.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    pub method: Method,
+    /// Instant drawn by `static` (default: the middle of the exposure).
+    pub time: Option<f64>,
+    /// Frames averaged by `reference`.
+    pub samples: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            method: Method::Blur,
+            time: None,
+            samples: 64,
+        }
+    }
+}
+
+/// What a render did, for `--explain` and the study.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Surfels (or surfel sub-segments) left out, by reason.
+    pub culled: Culled,
+    /// Footprints rasterized, over all frames.
+    pub footprints: usize,
+    /// Frames rasterized (1 except for the reference).
+    pub frames: usize,
+    /// Footprints of still objects reused across reference frames instead of projected again.
+    pub reused_footprints: usize,
+    /// The largest per-tile footprint list seen.
+    pub max_per_tile: usize,
+}
+
+impl Stats {
+    fn add_raster(&mut self, raster: &RasterStats) {
+        self.footprints += raster.footprints;
+        self.frames += 1;
+        self.max_per_tile = self.max_per_tile.max(raster.max_per_tile);
+    }
+}
+
+/// An image and how it was made.
+#[derive(Clone, Debug)]
+pub struct Render {
+    pub image: Framebuffer,
+    pub stats: Stats,
+}
+
+/// Render `scene` as `plan` and `settings` say. `progress`, when given, advances once per frame.
+#[must_use]
+pub fn render(
+    scene: &Scene,
+    plan: &Plan,
+    settings: &Settings,
+    progress: Option<&ProgressBar>,
+) -> Render {
+    match settings.method {
+        Method::Static => render_static(
+            scene,
+            settings.time.unwrap_or_else(|| scene.shutter.middle()),
+        ),
+        Method::Reference => reference::render(scene, plan, settings.samples.max(1), progress),
+        Method::Blur => blur::render(scene, plan),
+    }
+}
+
+/// EWA surface splatting of the whole scene at time `t`.
+#[must_use]
+pub fn render_static(scene: &Scene, t: f64) -> Render {
+    let mut stats = Stats::default();
+    let mut footprints = Vec::new();
+    for object in &scene.objects {
+        object_footprints_at(
+            &scene.camera,
+            &scene.lighting,
+            object,
+            t,
+            &mut footprints,
+            &mut stats.culled,
+        );
+    }
+    let image = draw(scene, &footprints, &mut stats);
+    Render { image, stats }
+}
+
+/// Rasterize footprints with the scene's size and background, counting into `stats`.
+fn draw(scene: &Scene, footprints: &[Footprint], stats: &mut Stats) -> Framebuffer {
+    let (image, raster) = rasterize(
+        footprints,
+        scene.camera.width,
+        scene.camera.height,
+        scene.background,
+    );
+    stats.add_raster(&raster);
+    image
+}

@@ -1,0 +1,66 @@
+//! The reference: an accumulation buffer of static frames (Haeberli & Akeley; Heinzle §6's
+//! temporal supersampling). Frame i is drawn at the midpoint of the i-th of N equal strata of the
+//! shutter interval and weighted by the shutter's mass in that stratum, so any shutter shape
+//! converges as N grows. Still objects are projected once and their footprints reused by every
+//! frame: the plan says they cannot change.
+
+use super::{draw, Render, Stats};
+use crate::framebuffer::Framebuffer;
+use crate::plan::{ObjectMotion, Plan};
+use crate::project::object_footprints_at;
+use crate::scene::Scene;
+use indicatif::ProgressBar;
+
+pub(super) fn render(
+    scene: &Scene,
+    plan: &Plan,
+    samples: usize,
+    progress: Option<&ProgressBar>,
+) -> Render {
+    let mut stats = Stats::default();
+    let objects = || scene.objects.iter().zip(&plan.objects);
+    let mut still = Vec::new();
+    for (object, _) in objects().filter(|(_, p)| p.motion == ObjectMotion::Still) {
+        object_footprints_at(
+            &scene.camera,
+            &scene.lighting,
+            object,
+            scene.shutter.middle(),
+            &mut still,
+            &mut stats.culled,
+        );
+    }
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let mut sum = vec![[0.0f64; 3]; width as usize * height as usize];
+    let mut footprints = Vec::new();
+    for (t, mass) in scene.shutter.strata(samples) {
+        footprints.clear();
+        footprints.extend_from_slice(&still);
+        for (object, _) in objects().filter(|(_, p)| p.motion != ObjectMotion::Still) {
+            object_footprints_at(
+                &scene.camera,
+                &scene.lighting,
+                object,
+                t,
+                &mut footprints,
+                &mut stats.culled,
+            );
+        }
+        let frame = draw(scene, &footprints, &mut stats);
+        for (acc, p) in sum.iter_mut().zip(&frame.pixels) {
+            for c in 0..3 {
+                acc[c] += mass * f64::from(p[c]);
+            }
+        }
+        if let Some(bar) = progress {
+            bar.inc(1);
+        }
+    }
+    stats.reused_footprints = still.len() * samples.saturating_sub(1);
+    let image = Framebuffer {
+        width,
+        height,
+        pixels: sum.into_iter().map(|p| p.map(|c| c as f32)).collect(),
+    };
+    Render { image, stats }
+}

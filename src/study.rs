@@ -1,0 +1,217 @@
+//! Error against run time: every method across its quality knob, timed, and measured against a
+//! converged reference of the same scene (DESIGN.md, "Error against run time").
+//!
+//! The reference is the accumulation buffer at `reference_samples` frames (1024 by default),
+//! cached as linear EXR keyed by the scene text, image size and sample count. Each render is timed
+//! as the median of `repeats` runs of plan + render (scene loading and surfel sampling excluded,
+//! as they are shared by every method). Times are only comparable within one run.
+
+use crate::error::{Error, Result};
+use crate::framebuffer::Framebuffer;
+use crate::metrics::compare;
+use crate::output::{read_exr, write_exr, write_png};
+use crate::plan::Plan;
+use crate::plot::StudyPoint;
+use crate::render::{render, Method, Render, Settings};
+use crate::scene::Scene;
+use indicatif::ProgressBar;
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Blur tolerances studied, px (the plan's chord-deviation tolerance).
+pub const BLUR_TOLERANCES_PX: [f64; 6] = [8.0, 4.0, 2.0, 1.0, 0.5, 0.25];
+
+/// The tolerance `streak render -m blur` uses unless told otherwise.
+pub const DEFAULT_TOLERANCE_PX: f64 = 1.0;
+
+/// What a study measures.
+#[derive(Clone, Debug)]
+pub struct StudyOptions {
+    /// Frames in the converged reference.
+    pub reference_samples: usize,
+    /// Largest reference sample count studied (1, 2, 4, … up to this).
+    pub max_samples: usize,
+    /// Timed runs per setting; the median is reported.
+    pub repeats: usize,
+    /// Where rendered images and the cached reference go.
+    pub out_dir: PathBuf,
+}
+
+/// One setting to study.
+#[derive(Clone, Copy, Debug)]
+struct Setting {
+    settings: Settings,
+    tolerance_px: f64,
+}
+
+impl Setting {
+    fn knob(&self) -> String {
+        match self.settings.method {
+            Method::Static => "t=mid".to_string(),
+            Method::Blur => format!("τ={}px", self.tolerance_px),
+            Method::Reference => format!("N={}", self.settings.samples),
+        }
+    }
+
+    fn file_stem(&self) -> String {
+        match self.settings.method {
+            Method::Static => "static".to_string(),
+            Method::Blur => format!("blur-tol{}", self.tolerance_px),
+            Method::Reference => format!("reference-n{}", self.settings.samples),
+        }
+    }
+}
+
+/// Plan and render once, returning the image and the elapsed seconds.
+fn timed(scene: &Scene, setting: &Setting) -> (Render, f64) {
+    let start = Instant::now();
+    let plan = Plan::new(scene, setting.tolerance_px);
+    let out = render(scene, &plan, &setting.settings, None);
+    (out, start.elapsed().as_secs_f64())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The converged reference, from the cache when the same scene, size and count were done before.
+pub fn converged_reference(
+    scene: &Scene,
+    samples: usize,
+    cache_dir: &Path,
+    progress: Option<&ProgressBar>,
+) -> Result<Framebuffer> {
+    let text = std::fs::read_to_string(&scene.source).map_err(|e| Error::io(&scene.source, e))?;
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    (
+        text,
+        scene.camera.width,
+        scene.camera.height,
+        samples,
+        env!("CARGO_PKG_VERSION"),
+    )
+        .hash(&mut hasher);
+    let path = cache_dir.join(format!("reference-{samples}-{:016x}.exr", hasher.finish()));
+    if let Ok(image) = read_exr(&path) {
+        if (image.width, image.height) == (scene.camera.width, scene.camera.height) {
+            return Ok(image);
+        }
+    }
+    let plan = Plan::new(scene, DEFAULT_TOLERANCE_PX);
+    let settings = Settings {
+        method: Method::Reference,
+        time: None,
+        samples,
+    };
+    let image = render(scene, &plan, &settings, progress).image;
+    write_exr(&image, &path)?;
+    Ok(image)
+}
+
+/// Run the study: render every method across its knob, time it, measure it against the converged
+/// reference, and write each image as PNG into `options.out_dir`.
+pub fn run(
+    scene: &Scene,
+    options: &StudyOptions,
+    progress: Option<&ProgressBar>,
+) -> Result<Vec<StudyPoint>> {
+    std::fs::create_dir_all(&options.out_dir).map_err(|e| Error::io(&options.out_dir, e))?;
+    let reference = converged_reference(
+        scene,
+        options.reference_samples,
+        &options.out_dir.join("cache"),
+        progress,
+    )?;
+    write_png(
+        &reference,
+        &options
+            .out_dir
+            .join(format!("converged-n{}.png", options.reference_samples)),
+    )?;
+
+    let mut setups = vec![Setting {
+        settings: Settings {
+            method: Method::Static,
+            ..Settings::default()
+        },
+        tolerance_px: DEFAULT_TOLERANCE_PX,
+    }];
+    setups.extend(BLUR_TOLERANCES_PX.iter().map(|&tolerance_px| Setting {
+        settings: Settings {
+            method: Method::Blur,
+            ..Settings::default()
+        },
+        tolerance_px,
+    }));
+    let mut n = 1;
+    while n <= options.max_samples {
+        setups.push(Setting {
+            settings: Settings {
+                method: Method::Reference,
+                time: None,
+                samples: n,
+            },
+            tolerance_px: DEFAULT_TOLERANCE_PX,
+        });
+        n *= 2;
+    }
+
+    let mut points = Vec::with_capacity(setups.len());
+    for setting in &setups {
+        let (first, first_time) = timed(scene, setting);
+        let mut times = vec![first_time];
+        times.extend((1..options.repeats.max(1)).map(|_| timed(scene, setting).1));
+        write_png(
+            &first.image,
+            &options.out_dir.join(format!("{}.png", setting.file_stem())),
+        )?;
+        points.push(StudyPoint {
+            method: setting.settings.method.name().to_string(),
+            knob: setting.knob(),
+            seconds: median(times),
+            error: compare(&first.image, &reference)?,
+        });
+        if let Some(bar) = progress {
+            bar.set_message(format!(
+                "{} {}",
+                setting.settings.method.name(),
+                setting.knob()
+            ));
+        }
+    }
+    Ok(points)
+}
+
+/// The first (smallest-N) reference point whose RMSE is at most `rmse`, if any was studied.
+#[must_use]
+pub fn samples_to_match(points: &[StudyPoint], rmse: f64) -> Option<&StudyPoint> {
+    points
+        .iter()
+        .find(|p| p.method == Method::Reference.name() && p.error.rmse <= rmse)
+}
+
+/// A plain-text table of the points with times as ratios to the static render.
+#[must_use]
+pub fn table(points: &[StudyPoint]) -> String {
+    let base = points
+        .iter()
+        .find(|p| p.method == Method::Static.name())
+        .map_or(1.0, |p| p.seconds);
+    let mut out = String::from("| method | knob | time (s) | × static | RMSE | PSNR (dB) | SSIM | FLIP |\n|---|---|---|---|---|---|---|---|\n");
+    for p in points {
+        out.push_str(&format!(
+            "| {} | {} | {:.4} | {:.1} | {:.5} | {:.2} | {:.4} | {:.4} |\n",
+            p.method,
+            p.knob,
+            p.seconds,
+            p.seconds / base,
+            p.error.rmse,
+            p.error.psnr_db,
+            p.error.ssim,
+            p.error.flip
+        ));
+    }
+    out
+}
