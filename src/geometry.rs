@@ -225,15 +225,9 @@ pub fn build_surfels(
             "a procedural shape needs `spacing`, the distance between surfels",
         )
     })?;
-    let extent = dimensions.iter().map(|(_, v)| *v).fold(0.0, f64::max);
-    let (p, q) = match *shape {
-        Shape::TorusKnot { p, q, .. } => (f64::from(p), f64::from(q)),
-        _ => (1.0, 1.0),
-    };
-    // A generous bound on surface area: every shape here fits inside (p+q)·4π·extent².
-    let estimate =
-        (p + q) * 4.0 * std::f64::consts::PI * (3.0 * extent).powi(2) / (spacing * spacing);
-    if estimate > MAX_SURFELS_PER_OBJECT {
+    // Grid sampling makes about area / spacing² surfels (rounding up adds at most one row per side).
+    let estimate = surface_area_bound(shape) / (spacing * spacing);
+    if !(estimate <= MAX_SURFELS_PER_OBJECT) {
         return Err(Error::input(
             file,
             field.replace(".shape", ".spacing"),
@@ -245,6 +239,24 @@ pub fn build_surfels(
         s.colour = colour_for(colour, s.normal, None);
     }
     Ok(surfels)
+}
+
+/// The surface area of a procedural shape (an upper bound for the torus knot).
+fn surface_area_bound(shape: &Shape) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    match *shape {
+        Shape::Sphere { radius } => 4.0 * PI * radius * radius,
+        Shape::Quad { size } => size[0] * size[1],
+        Shape::Box { size: [x, y, z] } => 2.0 * (x * y + y * z + z * x),
+        Shape::Cylinder { radius, length } => TAU * radius * (length + radius),
+        Shape::Torus { major, minor } => TAU * TAU * major * minor,
+        // The core curve's speed is at most scale·√((3p)² + q²) per radian of its parameter.
+        Shape::TorusKnot { p, q, scale, tube } => {
+            let speed = scale * (9.0 * f64::from(p).powi(2) + f64::from(q).powi(2)).sqrt();
+            TAU * tube * TAU * speed
+        }
+        Shape::Ply { .. } => 0.0,
+    }
 }
 
 /// Surfels from a point cloud, estimating what the file does not give.

@@ -1,21 +1,2223 @@
-//! TEMPORARY STUB
-use glam::DVec3;
+//! Point clouds: reading and writing PLY files, and estimating what surfels need from bare
+//! points — unit normals, covering radii and the surface area each point stands for.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::io::{Read, Write};
+use std::num::NonZeroUsize;
+use std::path::Path;
+
+use glam::{DVec2, DVec3};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+use spade::{DelaunayTriangulation, Point2, Triangulation};
+
+use crate::error::{Error, Result};
+
+/// A point cloud as read from a file, before surfels are built. Colours are linear RGB in 0..=1
+/// (8-bit PLY colours are sRGB-decoded; float colours are taken as linear).
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct PointCloud {
+    /// Point positions.
     pub positions: Vec<DVec3>,
+    /// Unit normals, one per point, when the file has them.
     pub normals: Option<Vec<DVec3>>,
+    /// Linear RGB colours in 0..=1, one per point, when the file has them.
     pub colors: Option<Vec<[f32; 3]>>,
+    /// Surfel radii (positive), one per point, when the file has them.
     pub radii: Option<Vec<f64>>,
 }
-pub fn read_ply(path: &std::path::Path) -> crate::error::Result<PointCloud> {
-    Err(crate::error::Error::input(path, "x", "stub"))
+
+// ---------------------------------------------------------------------------------------------
+// PLY reading
+// ---------------------------------------------------------------------------------------------
+
+/// Read a PLY point cloud (ascii, binary_little_endian, binary_big_endian). A path ending in `.gz`
+/// is gunzipped on the fly. Faces and other elements are ignored. Vertex properties: `x y z`
+/// (required), `nx ny nz` (optional, all three or none), `red green blue` (optional, uchar or
+/// float/double) and `radius` (optional); others are ignored. Any numeric PLY type is accepted
+/// for positions, normals and radii.
+///
+/// Every problem is an [`Error::Input`] naming the file and the header line, element or vertex
+/// (counted from 0) and property: a malformed or truncated file, values that are not finite, a
+/// normal of zero length (normals are scaled to unit length), a radius that is not positive, a
+/// float colour outside [0, 1].
+pub fn read_ply(path: &Path) -> Result<PointCloud> {
+    let raw = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if path.extension().is_some_and(|ext| ext == "gz") {
+        let mut bytes = Vec::new();
+        flate2::read::MultiGzDecoder::new(raw.as_slice())
+            .read_to_end(&mut bytes)
+            .map_err(|e| {
+                Error::input(
+                    path,
+                    "gzip data",
+                    format!("cannot decompress the file: {e}"),
+                )
+            })?;
+        parse_ply(&bytes, path)
+    } else {
+        parse_ply(&raw, path)
+    }
 }
-pub fn estimate_normals(positions: &[DVec3], _k: usize) -> Vec<DVec3> {
-    vec![DVec3::Z; positions.len()]
+
+/// Same as [`read_ply`], from uncompressed bytes already in memory; `path` is only used for error
+/// messages.
+pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud> {
+    let header = parse_header(bytes, path)?;
+    let vertex_element = header
+        .elements
+        .iter()
+        .position(|element| element.name == "vertex")
+        .ok_or_else(|| {
+            Error::input(
+                path,
+                "element vertex",
+                "the header declares no vertex element; a point cloud needs `element vertex N` \
+                 with properties x, y and z",
+            )
+        })?;
+    let vertices = &header.elements[vertex_element];
+    if vertices.count == 0 {
+        return Err(Error::input(
+            path,
+            "element vertex",
+            "the header declares 0 vertices; the file holds no points",
+        ));
+    }
+    let layout = VertexLayout::new(vertices, path)?;
+
+    let body = &bytes[header.body_offset..];
+    let mut reader = match header.encoding {
+        Encoding::Ascii => BodyReader::Ascii(AsciiBody::new(body, header.body_first_line)),
+        Encoding::BinaryLittleEndian => BodyReader::Binary(BinaryBody::new(body, false)),
+        Encoding::BinaryBigEndian => BodyReader::Binary(BinaryBody::new(body, true)),
+    };
+    for element in &header.elements[..vertex_element] {
+        reader.skip_element(element, path)?;
+    }
+
+    // Never trust the declared count for allocation: the data itself bounds how many records fit.
+    let capacity = vertices
+        .count
+        .min(body.len() / reader.min_record_bytes(vertices));
+    let mut cloud = CloudBuilder::new(&layout, capacity);
+    let mut values = vec![0.0; vertices.properties.len()];
+    for index in 0..vertices.count {
+        if !reader.read_record(vertices, index, &mut values, path)? {
+            return Err(Error::input(
+                path,
+                "element vertex",
+                format!(
+                    "the header declares {} vertices but the data ends after {index} \
+                     (truncated file, or wrong count in the header)",
+                    vertices.count
+                ),
+            ));
+        }
+        cloud.push(&layout, vertices, index, &values, path)?;
+    }
+    Ok(cloud.finish())
 }
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Encoding {
+    Ascii,
+    BinaryLittleEndian,
+    BinaryBigEndian,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ScalarType {
+    Int8,
+    UInt8,
+    Int16,
+    UInt16,
+    Int32,
+    UInt32,
+    Float32,
+    Float64,
+}
+
+impl ScalarType {
+    fn from_name(name: &str) -> Option<Self> {
+        Some(match name {
+            "char" | "int8" => ScalarType::Int8,
+            "uchar" | "uint8" => ScalarType::UInt8,
+            "short" | "int16" => ScalarType::Int16,
+            "ushort" | "uint16" => ScalarType::UInt16,
+            "int" | "int32" => ScalarType::Int32,
+            "uint" | "uint32" => ScalarType::UInt32,
+            "float" | "float32" => ScalarType::Float32,
+            "double" | "float64" => ScalarType::Float64,
+            _ => return None,
+        })
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            ScalarType::Int8 => "char",
+            ScalarType::UInt8 => "uchar",
+            ScalarType::Int16 => "short",
+            ScalarType::UInt16 => "ushort",
+            ScalarType::Int32 => "int",
+            ScalarType::UInt32 => "uint",
+            ScalarType::Float32 => "float",
+            ScalarType::Float64 => "double",
+        }
+    }
+
+    fn size(self) -> usize {
+        match self {
+            ScalarType::Int8 | ScalarType::UInt8 => 1,
+            ScalarType::Int16 | ScalarType::UInt16 => 2,
+            ScalarType::Int32 | ScalarType::UInt32 | ScalarType::Float32 => 4,
+            ScalarType::Float64 => 8,
+        }
+    }
+
+    /// Inclusive value range of an integer type; `None` for floating-point types.
+    fn integer_range(self) -> Option<(i64, i64)> {
+        match self {
+            ScalarType::Int8 => Some((i8::MIN.into(), i8::MAX.into())),
+            ScalarType::UInt8 => Some((0, u8::MAX.into())),
+            ScalarType::Int16 => Some((i16::MIN.into(), i16::MAX.into())),
+            ScalarType::UInt16 => Some((0, u16::MAX.into())),
+            ScalarType::Int32 => Some((i32::MIN.into(), i32::MAX.into())),
+            ScalarType::UInt32 => Some((0, u32::MAX.into())),
+            ScalarType::Float32 | ScalarType::Float64 => None,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum PropertyType {
+    Scalar(ScalarType),
+    List { count: ScalarType, item: ScalarType },
+}
+
+#[derive(Debug)]
+struct PropertyDecl {
+    name: String,
+    ty: PropertyType,
+}
+
+#[derive(Debug)]
+struct ElementDecl {
+    name: String,
+    count: usize,
+    properties: Vec<PropertyDecl>,
+}
+
+#[derive(Debug)]
+struct Header {
+    encoding: Encoding,
+    elements: Vec<ElementDecl>,
+    /// Byte offset of the first byte after `end_header` and its line break.
+    body_offset: usize,
+    /// Line number (1-based) of the first body line, for ascii error messages.
+    body_first_line: usize,
+}
+
+fn parse_header(bytes: &[u8], path: &Path) -> Result<Header> {
+    if bytes.is_empty() {
+        return Err(Error::input(
+            path,
+            "header line 1",
+            "the file is empty; a PLY file starts with the line `ply`",
+        ));
+    }
+    let mut encoding = None;
+    let mut elements: Vec<ElementDecl> = Vec::new();
+    let mut offset = 0;
+    let mut line_number = 0;
+    while offset < bytes.len() {
+        line_number += 1;
+        let line_end = bytes[offset..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(bytes.len(), |i| offset + i);
+        let raw_line = &bytes[offset..line_end];
+        offset = (line_end + 1).min(bytes.len());
+        let field = format!("header line {line_number}");
+
+        if line_number == 1 {
+            if raw_line.strip_suffix(b"\r").unwrap_or(raw_line) != b"ply" {
+                let hint = if bytes.starts_with(&[0x1f, 0x8b]) {
+                    " (it looks gzip-compressed: name it *.gz to have it decompressed)"
+                } else {
+                    ""
+                };
+                return Err(Error::input(
+                    path,
+                    field,
+                    format!("not a PLY file: the first line must be `ply`{hint}"),
+                ));
+            }
+            continue;
+        }
+        let line = std::str::from_utf8(raw_line)
+            .map_err(|_| Error::input(path, &field, "the header must be plain ASCII text"))?;
+        let words: Vec<&str> = line.split_ascii_whitespace().collect();
+        match words.as_slice() {
+            [] | ["comment", ..] | ["obj_info", ..] => {}
+            ["format", kind, _version] => {
+                encoding = Some(match *kind {
+                    "ascii" => Encoding::Ascii,
+                    "binary_little_endian" => Encoding::BinaryLittleEndian,
+                    "binary_big_endian" => Encoding::BinaryBigEndian,
+                    other => {
+                        return Err(Error::input(
+                            path,
+                            field,
+                            format!(
+                                "unknown format `{other}`; expected ascii, \
+                                 binary_little_endian or binary_big_endian"
+                            ),
+                        ))
+                    }
+                });
+            }
+            ["format", ..] => {
+                return Err(Error::input(
+                    path,
+                    field,
+                    "expected `format <ascii|binary_little_endian|binary_big_endian> 1.0`",
+                ))
+            }
+            ["element", name, count] => {
+                let count = count.parse::<usize>().map_err(|_| {
+                    Error::input(
+                        path,
+                        &field,
+                        format!("element count `{count}` is not a non-negative whole number"),
+                    )
+                })?;
+                if elements.iter().any(|element| element.name == *name) {
+                    return Err(Error::input(
+                        path,
+                        field,
+                        format!("element `{name}` is declared twice"),
+                    ));
+                }
+                elements.push(ElementDecl {
+                    name: name.to_string(),
+                    count,
+                    properties: Vec::new(),
+                });
+            }
+            ["element", ..] => {
+                return Err(Error::input(
+                    path,
+                    field,
+                    "expected `element <name> <count>`",
+                ))
+            }
+            ["property", rest @ ..] => {
+                let property = parse_property(rest, path, &field)?;
+                let element = elements.last_mut().ok_or_else(|| {
+                    Error::input(path, &field, "a property comes before any element")
+                })?;
+                if element.properties.iter().any(|p| p.name == property.name) {
+                    return Err(Error::input(
+                        path,
+                        field,
+                        format!(
+                            "property `{}` is declared twice in element `{}`",
+                            property.name, element.name
+                        ),
+                    ));
+                }
+                element.properties.push(property);
+            }
+            ["end_header"] => {
+                let encoding = encoding.ok_or_else(|| {
+                    Error::input(
+                        path,
+                        "header",
+                        "no `format` line; expected e.g. `format binary_little_endian 1.0`",
+                    )
+                })?;
+                return Ok(Header {
+                    encoding,
+                    elements,
+                    body_offset: offset,
+                    body_first_line: line_number + 1,
+                });
+            }
+            [keyword, ..] => {
+                return Err(Error::input(
+                    path,
+                    field,
+                    format!(
+                        "unknown header keyword `{keyword}`; expected format, element, \
+                         property, comment, obj_info or end_header"
+                    ),
+                ))
+            }
+        }
+    }
+    Err(Error::input(
+        path,
+        "header",
+        "the header has no `end_header` line (truncated or not a PLY file)",
+    ))
+}
+
+fn parse_property(words: &[&str], path: &Path, field: &str) -> Result<PropertyDecl> {
+    let scalar = |name: &str| {
+        ScalarType::from_name(name).ok_or_else(|| {
+            Error::input(
+                path,
+                field,
+                format!(
+                    "unknown property type `{name}`; expected char, uchar, short, ushort, int, \
+                     uint, float or double (or int8 … float64)"
+                ),
+            )
+        })
+    };
+    match words {
+        ["list", count, item, name] => {
+            let count = scalar(count)?;
+            if count.integer_range().is_none() {
+                return Err(Error::input(
+                    path,
+                    field,
+                    format!(
+                        "list `{name}` has a non-integer count type `{}`",
+                        count.name()
+                    ),
+                ));
+            }
+            Ok(PropertyDecl {
+                name: name.to_string(),
+                ty: PropertyType::List {
+                    count,
+                    item: scalar(item)?,
+                },
+            })
+        }
+        [ty, name] => Ok(PropertyDecl {
+            name: name.to_string(),
+            ty: PropertyType::Scalar(scalar(ty)?),
+        }),
+        _ => Err(Error::input(
+            path,
+            field,
+            "expected `property <type> <name>` or `property list <count type> <item type> <name>`",
+        )),
+    }
+}
+
+/// How an 8-bit or floating-point colour channel becomes linear RGB.
+#[derive(Clone, Copy, Debug)]
+enum ColorEncoding {
+    Srgb8,
+    Linear,
+}
+
+/// Which vertex properties hold what, as indices into the element's property list.
+struct VertexLayout {
+    position: [usize; 3],
+    normal: Option<[usize; 3]>,
+    color: Option<[(usize, ColorEncoding); 3]>,
+    radius: Option<usize>,
+}
+
+impl VertexLayout {
+    fn new(vertices: &ElementDecl, path: &Path) -> Result<Self> {
+        let find_number = |name: &str| -> Result<Option<(usize, ScalarType)>> {
+            let Some(index) = vertices.properties.iter().position(|p| p.name == name) else {
+                return Ok(None);
+            };
+            match vertices.properties[index].ty {
+                PropertyType::Scalar(ty) => Ok(Some((index, ty))),
+                PropertyType::List { .. } => Err(Error::input(
+                    path,
+                    "element vertex",
+                    format!("property `{name}` is a list; expected a single number"),
+                )),
+            }
+        };
+        // All of a group's properties, none of them, or an error naming what is missing.
+        let find_group =
+            |names: [&str; 3], what: &str| -> Result<Option<[(usize, ScalarType); 3]>> {
+                let found = [
+                    find_number(names[0])?,
+                    find_number(names[1])?,
+                    find_number(names[2])?,
+                ];
+                match found {
+                    [Some(a), Some(b), Some(c)] => Ok(Some([a, b, c])),
+                    [None, None, None] => Ok(None),
+                    _ => {
+                        let missing: Vec<&str> = names
+                            .iter()
+                            .zip(found)
+                            .filter(|(_, found)| found.is_none())
+                            .map(|(name, _)| *name)
+                            .collect();
+                        Err(Error::input(
+                            path,
+                            "element vertex",
+                            format!(
+                                "a {what} needs all of {}; missing: {}",
+                                names.join(" "),
+                                missing.join(" ")
+                            ),
+                        ))
+                    }
+                }
+            };
+        let indices = |group: [(usize, ScalarType); 3]| group.map(|(index, _)| index);
+
+        let position = find_group(["x", "y", "z"], "position")?
+            .map(indices)
+            .ok_or_else(|| {
+                Error::input(
+                    path,
+                    "element vertex",
+                    "no position: the vertex element needs properties x, y and z",
+                )
+            })?;
+        let normal = find_group(["nx", "ny", "nz"], "normal")?.map(indices);
+        let color = match find_group(["red", "green", "blue"], "colour")? {
+            None => None,
+            Some(channels) => {
+                let encoding_of = |(index, ty): (usize, ScalarType)| match ty {
+                    ScalarType::UInt8 => Ok((index, ColorEncoding::Srgb8)),
+                    ScalarType::Float32 | ScalarType::Float64 => Ok((index, ColorEncoding::Linear)),
+                    other => Err(Error::input(
+                        path,
+                        "element vertex",
+                        format!(
+                            "colour property `{}` has type {}; expected uchar (sRGB 0–255) or \
+                             float/double (linear 0–1)",
+                            vertices.properties[index].name,
+                            other.name()
+                        ),
+                    )),
+                };
+                Some([
+                    encoding_of(channels[0])?,
+                    encoding_of(channels[1])?,
+                    encoding_of(channels[2])?,
+                ])
+            }
+        };
+        let radius = find_number("radius")?.map(|(index, _)| index);
+        Ok(VertexLayout {
+            position,
+            normal,
+            color,
+            radius,
+        })
+    }
+}
+
+/// Collects validated vertices into a [`PointCloud`].
+struct CloudBuilder {
+    cloud: PointCloud,
+}
+
+impl CloudBuilder {
+    fn new(layout: &VertexLayout, capacity: usize) -> Self {
+        CloudBuilder {
+            cloud: PointCloud {
+                positions: Vec::with_capacity(capacity),
+                normals: layout.normal.map(|_| Vec::with_capacity(capacity)),
+                colors: layout.color.map(|_| Vec::with_capacity(capacity)),
+                radii: layout.radius.map(|_| Vec::with_capacity(capacity)),
+            },
+        }
+    }
+
+    fn push(
+        &mut self,
+        layout: &VertexLayout,
+        vertices: &ElementDecl,
+        index: usize,
+        values: &[f64],
+        path: &Path,
+    ) -> Result<()> {
+        let finite = |property: usize| -> Result<f64> {
+            let value = values[property];
+            if value.is_finite() {
+                Ok(value)
+            } else {
+                Err(Error::input(
+                    path,
+                    format!(
+                        "vertex {index} property {}",
+                        vertices.properties[property].name
+                    ),
+                    format!("value is {value}; every value must be a finite number"),
+                ))
+            }
+        };
+        let vector = |[x, y, z]: [usize; 3]| -> Result<DVec3> {
+            Ok(DVec3::new(finite(x)?, finite(y)?, finite(z)?))
+        };
+
+        self.cloud.positions.push(vector(layout.position)?);
+        if let (Some(indices), Some(normals)) = (layout.normal, &mut self.cloud.normals) {
+            let normal = vector(indices)?;
+            // Dividing by the largest component first keeps tiny but valid normals from
+            // underflowing when squared.
+            let largest = normal.abs().max_element();
+            if largest == 0.0 {
+                return Err(Error::input(
+                    path,
+                    format!("vertex {index}"),
+                    "normal has zero length; give a unit normal or leave normals out to have \
+                     them estimated",
+                ));
+            }
+            normals.push((normal / largest).normalize());
+        }
+        if let (Some(channels), Some(colors)) = (layout.color, &mut self.cloud.colors) {
+            let mut rgb = [0.0f32; 3];
+            for (out, (property, encoding)) in rgb.iter_mut().zip(channels) {
+                let value = finite(property)?;
+                *out = match encoding {
+                    ColorEncoding::Srgb8 => srgb8_to_linear(value),
+                    ColorEncoding::Linear if (0.0..=1.0).contains(&value) => value as f32,
+                    ColorEncoding::Linear => {
+                        return Err(Error::input(
+                            path,
+                            format!(
+                                "vertex {index} property {}",
+                                vertices.properties[property].name
+                            ),
+                            format!(
+                                "float colour {value} is outside [0, 1]; store 0–255 colours \
+                                 as uchar"
+                            ),
+                        ))
+                    }
+                };
+            }
+            colors.push(rgb);
+        }
+        if let (Some(property), Some(radii)) = (layout.radius, &mut self.cloud.radii) {
+            let radius = finite(property)?;
+            if radius <= 0.0 {
+                return Err(Error::input(
+                    path,
+                    format!("vertex {index} property radius"),
+                    format!("radius {radius} must be positive"),
+                ));
+            }
+            radii.push(radius);
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> PointCloud {
+        self.cloud
+    }
+}
+
+/// The sRGB transfer function inverted, for an 8-bit channel value in 0..=255.
+fn srgb8_to_linear(value: f64) -> f32 {
+    let encoded = value / 255.0;
+    let linear = if encoded <= 0.04045 {
+        encoded / 12.92
+    } else {
+        ((encoded + 0.055) / 1.055).powf(2.4)
+    };
+    linear as f32
+}
+
+/// Walks the data after the header one element record at a time.
+enum BodyReader<'a> {
+    Ascii(AsciiBody<'a>),
+    Binary(BinaryBody<'a>),
+}
+
+impl BodyReader<'_> {
+    /// A lower bound on the bytes one record of `element` takes, at least 1.
+    fn min_record_bytes(&self, element: &ElementDecl) -> usize {
+        let bytes = match self {
+            // Each value needs a digit and a separator.
+            BodyReader::Ascii(_) => 2 * element.properties.len(),
+            BodyReader::Binary(_) => element
+                .properties
+                .iter()
+                .map(|property| match property.ty {
+                    PropertyType::Scalar(ty) => ty.size(),
+                    PropertyType::List { count, .. } => count.size(),
+                })
+                .sum(),
+        };
+        bytes.max(1)
+    }
+
+    fn skip_element(&mut self, element: &ElementDecl, path: &Path) -> Result<()> {
+        // An element without properties occupies no data, however large its count.
+        if element.properties.is_empty() {
+            return Ok(());
+        }
+        let mut ignored = vec![0.0; element.properties.len()];
+        for index in 0..element.count {
+            let complete = match self {
+                // Ascii records are lines: no need to look inside what is ignored anyway.
+                BodyReader::Ascii(body) => body.next_line().is_some(),
+                BodyReader::Binary(body) => body.read_record(element, index, &mut ignored, path)?,
+            };
+            if !complete {
+                return Err(Error::input(
+                    path,
+                    format!("element {}", element.name),
+                    format!(
+                        "the header declares {} {} records but the data ends after {index}",
+                        element.count, element.name
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads record `index` of `element` into `values` (one per property; lists are skipped and
+    /// leave their slot untouched). Returns false when the data ends before the record starts.
+    fn read_record(
+        &mut self,
+        element: &ElementDecl,
+        index: usize,
+        values: &mut [f64],
+        path: &Path,
+    ) -> Result<bool> {
+        match self {
+            BodyReader::Ascii(body) => body.read_record(element, index, values, path),
+            BodyReader::Binary(body) => body.read_record(element, index, values, path),
+        }
+    }
+}
+
+fn record_field(element: &ElementDecl, index: usize, property: &PropertyDecl) -> String {
+    format!("{} {index} property {}", element.name, property.name)
+}
+
+/// Ascii PLY data: one record per line, values separated by whitespace.
+struct AsciiBody<'a> {
+    rest: &'a [u8],
+    line_number: usize,
+}
+
+impl<'a> AsciiBody<'a> {
+    fn new(body: &'a [u8], first_line: usize) -> Self {
+        AsciiBody {
+            rest: body,
+            line_number: first_line - 1,
+        }
+    }
+
+    /// The next line that is not blank, or `None` at the end of the data.
+    fn next_line(&mut self) -> Option<&'a [u8]> {
+        while !self.rest.is_empty() {
+            let end = self
+                .rest
+                .iter()
+                .position(|&b| b == b'\n')
+                .unwrap_or(self.rest.len());
+            let line = &self.rest[..end];
+            self.rest = &self.rest[(end + 1).min(self.rest.len())..];
+            self.line_number += 1;
+            if !line.iter().all(u8::is_ascii_whitespace) {
+                return Some(line);
+            }
+        }
+        None
+    }
+
+    fn read_record(
+        &mut self,
+        element: &ElementDecl,
+        index: usize,
+        values: &mut [f64],
+        path: &Path,
+    ) -> Result<bool> {
+        let Some(line) = self.next_line() else {
+            return Ok(false);
+        };
+        let line_number = self.line_number;
+        let mut tokens = line
+            .split(u8::is_ascii_whitespace)
+            .filter(|token| !token.is_empty());
+        let mut next_value = |property: &PropertyDecl, ty: ScalarType| -> Result<f64> {
+            let field = || record_field(element, index, property);
+            let token = tokens.next().ok_or_else(|| {
+                Error::input(
+                    path,
+                    field(),
+                    format!("line {line_number} ends before this value"),
+                )
+            })?;
+            parse_ascii_value(token, ty).ok_or_else(|| {
+                Error::input(
+                    path,
+                    field(),
+                    format!(
+                        "`{}` on line {line_number} is not a valid {}",
+                        String::from_utf8_lossy(token),
+                        ty.name()
+                    ),
+                )
+            })
+        };
+        for (property, value) in element.properties.iter().zip(values.iter_mut()) {
+            match property.ty {
+                PropertyType::Scalar(ty) => *value = next_value(property, ty)?,
+                PropertyType::List { count, item } => {
+                    let length = next_value(property, count)?;
+                    if length < 0.0 {
+                        return Err(Error::input(
+                            path,
+                            record_field(element, index, property),
+                            format!("list length {length} on line {line_number} is negative"),
+                        ));
+                    }
+                    for _ in 0..length as u64 {
+                        next_value(property, item)?;
+                    }
+                }
+            }
+        }
+        if tokens.next().is_some() {
+            return Err(Error::input(
+                path,
+                format!("{} {index}", element.name),
+                format!(
+                    "line {line_number} has more values than the {} properties the header \
+                     declares",
+                    element.properties.len()
+                ),
+            ));
+        }
+        Ok(true)
+    }
+}
+
+/// Parses one ascii token as a value of type `ty`: integers must be whole and in range; floats are
+/// rounded to the declared precision, so ascii and binary files of the same data agree.
+fn parse_ascii_value(token: &[u8], ty: ScalarType) -> Option<f64> {
+    let text = std::str::from_utf8(token).ok()?;
+    match ty.integer_range() {
+        Some((min, max)) => {
+            let value = text.parse::<i64>().ok()?;
+            (min..=max).contains(&value).then_some(value as f64)
+        }
+        None if ty == ScalarType::Float32 => text.parse::<f32>().ok().map(f64::from),
+        None => text.parse::<f64>().ok(),
+    }
+}
+
+fn truncated(element: &ElementDecl, index: usize, property: &PropertyDecl, path: &Path) -> Error {
+    Error::input(
+        path,
+        record_field(element, index, property),
+        format!(
+            "the data ends in the middle of this record (truncated file?); the header declares \
+             {} {} records",
+            element.count, element.name
+        ),
+    )
+}
+
+/// Binary PLY data in either byte order.
+struct BinaryBody<'a> {
+    bytes: &'a [u8],
+    position: usize,
+    big_endian: bool,
+}
+
+impl<'a> BinaryBody<'a> {
+    fn new(bytes: &'a [u8], big_endian: bool) -> Self {
+        BinaryBody {
+            bytes,
+            position: 0,
+            big_endian,
+        }
+    }
+
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let bytes: [u8; N] = self
+            .bytes
+            .get(self.position..self.position + N)?
+            .try_into()
+            .ok()?;
+        self.position += N;
+        Some(if self.big_endian {
+            bytes
+        } else {
+            let mut reversed = bytes;
+            reversed.reverse();
+            reversed
+        })
+    }
+
+    /// Reads one value, or `None` when the data ends first.
+    fn read_value(&mut self, ty: ScalarType) -> Option<f64> {
+        // `take` returns big-endian bytes whatever the file's byte order.
+        Some(match ty {
+            ScalarType::Int8 => i8::from_be_bytes(self.take()?).into(),
+            ScalarType::UInt8 => u8::from_be_bytes(self.take()?).into(),
+            ScalarType::Int16 => i16::from_be_bytes(self.take()?).into(),
+            ScalarType::UInt16 => u16::from_be_bytes(self.take()?).into(),
+            ScalarType::Int32 => i32::from_be_bytes(self.take()?).into(),
+            ScalarType::UInt32 => u32::from_be_bytes(self.take()?).into(),
+            ScalarType::Float32 => f32::from_be_bytes(self.take()?).into(),
+            ScalarType::Float64 => f64::from_be_bytes(self.take()?),
+        })
+    }
+
+    fn read_record(
+        &mut self,
+        element: &ElementDecl,
+        index: usize,
+        values: &mut [f64],
+        path: &Path,
+    ) -> Result<bool> {
+        if self.position >= self.bytes.len() {
+            return Ok(false);
+        }
+        for (property, value) in element.properties.iter().zip(values.iter_mut()) {
+            match property.ty {
+                PropertyType::Scalar(ty) => {
+                    *value = self
+                        .read_value(ty)
+                        .ok_or_else(|| truncated(element, index, property, path))?;
+                }
+                PropertyType::List { count, item } => {
+                    self.skip_list(element, index, property, count, item, path)?
+                }
+            }
+        }
+        Ok(true)
+    }
+
+    fn skip_list(
+        &mut self,
+        element: &ElementDecl,
+        index: usize,
+        property: &PropertyDecl,
+        count: ScalarType,
+        item: ScalarType,
+        path: &Path,
+    ) -> Result<()> {
+        let length = self
+            .read_value(count)
+            .ok_or_else(|| truncated(element, index, property, path))?;
+        if length < 0.0 {
+            return Err(Error::input(
+                path,
+                record_field(element, index, property),
+                format!("list length {length} is negative"),
+            ));
+        }
+        let end = (length as usize)
+            .checked_mul(item.size())
+            .and_then(|bytes| self.position.checked_add(bytes))
+            .filter(|&end| end <= self.bytes.len())
+            .ok_or_else(|| truncated(element, index, property, path))?;
+        self.position = end;
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// PLY writing
+// ---------------------------------------------------------------------------------------------
+
+/// Write a cloud as PLY, ascii or binary little endian. Positions, normals and radii are written
+/// as double and colours as linear float, so reading the file back gives the same cloud exactly.
+/// Fails with `InvalidInput` when an attribute's length differs from the number of positions.
+pub fn write_ply(cloud: &PointCloud, binary: bool, out: &mut impl Write) -> std::io::Result<()> {
+    let count = cloud.positions.len();
+    let lengths_match = cloud.normals.as_ref().is_none_or(|v| v.len() == count)
+        && cloud.colors.as_ref().is_none_or(|v| v.len() == count)
+        && cloud.radii.as_ref().is_none_or(|v| v.len() == count);
+    if !lengths_match {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "point cloud attributes must have one entry per position",
+        ));
+    }
+
+    let mut out = std::io::BufWriter::new(out);
+    let format = if binary {
+        "binary_little_endian"
+    } else {
+        "ascii"
+    };
+    writeln!(out, "ply\nformat {format} 1.0\ncomment written by streak")?;
+    writeln!(out, "element vertex {count}")?;
+    let mut properties = vec![("double", "x"), ("double", "y"), ("double", "z")];
+    if cloud.normals.is_some() {
+        properties.extend([("double", "nx"), ("double", "ny"), ("double", "nz")]);
+    }
+    if cloud.colors.is_some() {
+        properties.extend([("float", "red"), ("float", "green"), ("float", "blue")]);
+    }
+    if cloud.radii.is_some() {
+        properties.push(("double", "radius"));
+    }
+    for (ty, name) in properties {
+        writeln!(out, "property {ty} {name}")?;
+    }
+    writeln!(out, "end_header")?;
+
+    for index in 0..count {
+        let mut doubles = cloud.positions[index].to_array().to_vec();
+        if let Some(normals) = &cloud.normals {
+            doubles.extend(normals[index].to_array());
+        }
+        let color = cloud.colors.as_ref().map(|colors| colors[index]);
+        let radius = cloud.radii.as_ref().map(|radii| radii[index]);
+        if binary {
+            for value in &doubles {
+                out.write_all(&value.to_le_bytes())?;
+            }
+            for channel in color.into_iter().flatten() {
+                out.write_all(&channel.to_le_bytes())?;
+            }
+            if let Some(value) = radius {
+                out.write_all(&value.to_le_bytes())?;
+            }
+        } else {
+            // Rust prints floats with the fewest digits that read back to the same value.
+            let mut words: Vec<String> = doubles.iter().map(f64::to_string).collect();
+            words.extend(
+                color
+                    .into_iter()
+                    .flatten()
+                    .map(|channel| channel.to_string()),
+            );
+            words.extend(radius.map(|value| value.to_string()));
+            writeln!(out, "{}", words.join(" "))?;
+        }
+    }
+    out.flush()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Neighbourhoods
+// ---------------------------------------------------------------------------------------------
+
+/// Nearest-neighbour queries over a fixed set of points. Exact ties in distance are broken the
+/// same way on every run, so everything built on this is deterministic.
+struct NeighbourSearch {
+    points: Vec<[f64; 3]>,
+    /// `None` when there are no points to search.
+    tree: Option<ImmutableKdTree<f64, 3>>,
+}
+
+impl NeighbourSearch {
+    fn new(positions: &[DVec3]) -> Self {
+        let points: Vec<[f64; 3]> = positions.iter().map(|p| p.to_array()).collect();
+        let tree = (!points.is_empty()).then(|| {
+            ImmutableKdTree::new_from_slice(&points)
+                .expect("a point cloud has fewer than 2^32 points")
+        });
+        NeighbourSearch { points, tree }
+    }
+
+    /// Replaces `out` with the `count` nearest other points of point `index`, nearest first
+    /// (fewer when the cloud is smaller).
+    fn nearest(&self, index: usize, count: usize, out: &mut Vec<u32>) {
+        out.clear();
+        let (Some(tree), Some(query_count)) = (&self.tree, NonZeroUsize::new(count)) else {
+            return;
+        };
+        let found = tree
+            .query(&self.points[index])
+            .nearest_n::<SquaredEuclidean<f64>>(query_count.saturating_add(1))
+            .execute();
+        // The point itself is among the results unless more than `count` duplicates of it crowd
+        // it out; either way keep the first `count` others.
+        out.extend(
+            found
+                .iter()
+                .map(|neighbour| neighbour.item)
+                .filter(|&item| item as usize != index)
+                .take(count),
+        );
+    }
+}
+
+/// The min(k, n - 1) nearest other points of every point, nearest first.
+struct Neighbours {
+    per_point: usize,
+    indices: Vec<u32>,
+}
+
+impl Neighbours {
+    fn find(positions: &[DVec3], k: usize) -> Self {
+        let per_point = k.min(positions.len().saturating_sub(1));
+        let mut indices = vec![0u32; positions.len() * per_point];
+        if per_point > 0 {
+            let search = NeighbourSearch::new(positions);
+            indices.par_chunks_mut(per_point).enumerate().for_each_init(
+                Vec::new,
+                |found, (index, out)| {
+                    search.nearest(index, per_point, found);
+                    out.copy_from_slice(found);
+                },
+            );
+        }
+        Neighbours { per_point, indices }
+    }
+
+    fn of(&self, index: usize) -> &[u32] {
+        &self.indices[index * self.per_point..(index + 1) * self.per_point]
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Normal estimation
+// ---------------------------------------------------------------------------------------------
+
+/// Unit normals by PCA of the k nearest neighbours (the smallest-eigenvalue eigenvector of their
+/// covariance), oriented consistently: orientation is propagated over the k-NN graph along a
+/// minimum spanning tree with edge cost 1 - |n_i·n_j| (Hoppe et al. 1992), then each connected
+/// part of the graph is flipped as a whole so that most of its normals point away from its
+/// centroid. Deterministic (same input → same output, whatever the thread count). Duplicate
+/// points, collinear neighbourhoods (any unit normal perpendicular to the line) and fewer than `k`
+/// points are handled; `k` below 3 is raised to 3, the fewest points that span a plane.
+/// Positions must be finite, as [`read_ply`] guarantees.
+pub fn estimate_normals(positions: &[DVec3], k: usize) -> Vec<DVec3> {
+    let neighbours = Neighbours::find(positions, k.max(3));
+    let mut normals: Vec<DVec3> = (0..positions.len())
+        .into_par_iter()
+        .map(|index| pca_normal(positions, index, neighbours.of(index)))
+        .collect();
+    orient_normals(positions, &neighbours, &mut normals);
+    normals
+}
+
+/// Normal of the plane that best fits a point and its neighbours.
+fn pca_normal(positions: &[DVec3], index: usize, neighbours: &[u32]) -> DVec3 {
+    let points = || {
+        std::iter::once(positions[index]).chain(neighbours.iter().map(|&j| positions[j as usize]))
+    };
+    let count = (neighbours.len() + 1) as f64;
+    let mean = points().sum::<DVec3>() / count;
+    let mut covariance = [[0.0; 3]; 3];
+    for point in points() {
+        let d = (point - mean).to_array();
+        for row in 0..3 {
+            for column in 0..3 {
+                covariance[row][column] += d[row] * d[column];
+            }
+        }
+    }
+    smallest_eigenvector(covariance)
+}
+
+/// Unit eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, by cyclic Jacobi
+/// rotations: slower than a closed form but accurate even when eigenvalues nearly coincide.
+fn smallest_eigenvector(mut a: [[f64; 3]; 3]) -> DVec3 {
+    let mut vectors = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _sweep in 0..50 {
+        let off_diagonal = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+        let diagonal = a[0][0] * a[0][0] + a[1][1] * a[1][1] + a[2][2] * a[2][2];
+        if off_diagonal <= 1e-30 * diagonal {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q] == 0.0 {
+                continue;
+            }
+            let r = 3 - p - q;
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + theta.hypot(1.0));
+            let c = 1.0 / t.hypot(1.0);
+            let s = t * c;
+            a[p][p] -= t * a[p][q];
+            a[q][q] += t * a[p][q];
+            a[p][q] = 0.0;
+            a[q][p] = 0.0;
+            let (arp, arq) = (a[r][p], a[r][q]);
+            a[r][p] = c * arp - s * arq;
+            a[p][r] = a[r][p];
+            a[r][q] = s * arp + c * arq;
+            a[q][r] = a[r][q];
+            for row in &mut vectors {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let smallest = (0..3)
+        .min_by(|&i, &j| a[i][i].total_cmp(&a[j][j]))
+        .unwrap_or(0);
+    let column = DVec3::new(
+        vectors[0][smallest],
+        vectors[1][smallest],
+        vectors[2][smallest],
+    );
+    column.try_normalize().unwrap_or(DVec3::Z)
+}
+
+/// Flips normals so that neighbours agree (Hoppe's minimum-spanning-tree propagation), then
+/// flips each connected part so that most of its normals point away from its centroid.
+fn orient_normals(positions: &[DVec3], neighbours: &Neighbours, normals: &mut [DVec3]) {
+    let graph = SymmetricGraph::from_neighbours(neighbours, positions.len());
+    let mut visited = vec![false; positions.len()];
+    let mut heap = BinaryHeap::new();
+    let mut part = Vec::new();
+    for seed in 0..positions.len() {
+        if visited[seed] {
+            continue;
+        }
+        // Prim's algorithm; costs are non-negative floats, whose bit patterns order like the
+        // values, and ties fall to the lower index, so the tree does not depend on timing.
+        part.clear();
+        heap.push(Reverse((0u64, seed as u32, seed as u32)));
+        while let Some(Reverse((_, node, parent))) = heap.pop() {
+            let node = node as usize;
+            if visited[node] {
+                continue;
+            }
+            visited[node] = true;
+            part.push(node);
+            if normals[node].dot(normals[parent as usize]) < 0.0 {
+                normals[node] = -normals[node];
+            }
+            for &next in graph.adjacent(node) {
+                if !visited[next as usize] {
+                    let cost = (1.0 - normals[node].dot(normals[next as usize]).abs()).max(0.0);
+                    heap.push(Reverse((cost.to_bits(), next, node as u32)));
+                }
+            }
+        }
+
+        let centroid = part.iter().map(|&i| positions[i]).sum::<DVec3>() / part.len() as f64;
+        let outward_votes: i64 = part
+            .iter()
+            .map(|&i| {
+                let alignment = (positions[i] - centroid).dot(normals[i]);
+                i64::from(alignment > 0.0) - i64::from(alignment < 0.0)
+            })
+            .sum();
+        if outward_votes < 0 {
+            for &i in &part {
+                normals[i] = -normals[i];
+            }
+        }
+    }
+}
+
+/// The k-NN graph made undirected, as adjacency lists in one array (compressed sparse rows).
+struct SymmetricGraph {
+    starts: Vec<usize>,
+    adjacent: Vec<u32>,
+}
+
+impl SymmetricGraph {
+    fn from_neighbours(neighbours: &Neighbours, count: usize) -> Self {
+        let mut edges: Vec<(u32, u32)> = (0..count)
+            .flat_map(|i| {
+                neighbours.of(i).iter().flat_map(move |&j| {
+                    let i = i as u32;
+                    [(i, j), (j, i)]
+                })
+            })
+            .collect();
+        edges.par_sort_unstable();
+        edges.dedup();
+        let mut starts = vec![0usize; count + 1];
+        for &(from, _) in &edges {
+            starts[from as usize + 1] += 1;
+        }
+        for i in 0..count {
+            starts[i + 1] += starts[i];
+        }
+        SymmetricGraph {
+            starts,
+            adjacent: edges.into_iter().map(|(_, to)| to).collect(),
+        }
+    }
+
+    fn adjacent(&self, node: usize) -> &[u32] {
+        &self.adjacent[self.starts[node]..self.starts[node + 1]]
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Radii and areas
+// ---------------------------------------------------------------------------------------------
+
+/// Triangles whose circumradius exceeds this many times the distance to the k-th neighbour are
+/// slivers (typically spanning a boundary) and are left out.
+const SLIVER_CIRCUMRADIUS_LIMIT: f64 = 3.0;
+
+/// A point whose triangles are not yet known to be complete looks at up to this many times k
+/// neighbours before it is taken for a point on the boundary of the surface.
+const NEIGHBOURHOOD_GROWTH_LIMIT: usize = 4;
+
+/// Per point: a covering radius (discs of these radii in the tangent planes leave no holes in the
+/// surface) and the surface area the point stands for.
+///
+/// The k nearest neighbours are projected to the point's tangent plane (normals must be unit
+/// length) and triangulated together with the point (2D Delaunay, spade). Every triangle is
+/// shared out among its three corners: each gets the part nearer to it than to the other two.
+/// A point's area is the sum of its parts of the triangles around it, and its radius the
+/// farthest reach of those parts, so the discs cover every triangle. For a triangle without an
+/// obtuse angle the reach is its circumradius (the circumcentre is the spot farthest from all
+/// corners); an obtuse triangle's circumcentre lies outside it, and the reach is shorter.
+///
+/// The shares add up to the surface only where the points' separate triangulations agree. A
+/// point's triangles are certainly those of the triangulation of the whole cloud when they close
+/// around it and each circumcircle lies within the distance of the farthest neighbour used (no
+/// other point can fall inside it). Where that fails — irregular sampling, or a point on the hull
+/// of its own neighbourhood — 2k and then 4k neighbours are tried; a point still on the hull is on
+/// the boundary of an open surface and keeps the triangles on its inner side.
+///
+/// Unlike a third of the incident triangles' area, the shares do not depend on which diagonal the
+/// triangulation picks where four points lie on a circle (any regular grid): on a square grid
+/// every inner point gets exactly the area of one cell. Triangles whose circumradius exceeds 3×
+/// the distance to the k-th neighbour are slivers spanning gaps or a concave boundary and are
+/// left out. Neighbours that coincide with the point after projection (duplicates) are ignored.
+/// When no triangle is left, the radius is the distance `d` to the nearest distinct neighbour and
+/// the area that of a disc of radius `d/2`; a point with no distinct neighbour at all gets 0 for
+/// both. `k` below 3 is raised to 3. Parallel but deterministic.
+///
+/// # Panics
+/// If `normals` and `positions` differ in length.
 pub fn estimate_radii_and_areas(
     positions: &[DVec3],
-    _n: &[DVec3],
-    _k: usize,
+    normals: &[DVec3],
+    k: usize,
 ) -> (Vec<f64>, Vec<f64>) {
-    (vec![0.01; positions.len()], vec![1e-4; positions.len()])
+    assert_eq!(
+        positions.len(),
+        normals.len(),
+        "estimate_radii_and_areas needs one normal per position"
+    );
+    let search = NeighbourSearch::new(positions);
+    (0..positions.len())
+        .into_par_iter()
+        .map_init(
+            || (DelaunayTriangulation::new(), Vec::new()),
+            |(triangulation, neighbours), index| {
+                let mut patch = TangentPatch {
+                    triangulation,
+                    neighbours,
+                    positions,
+                    index,
+                    normal: normals[index],
+                };
+                patch.radius_and_area(&search, k.max(3))
+            },
+        )
+        .unzip()
+}
+
+/// One point's neighbourhood projected to its tangent plane; the buffers are reused between
+/// points.
+struct TangentPatch<'a> {
+    triangulation: &'a mut DelaunayTriangulation<Point2<f64>>,
+    neighbours: &'a mut Vec<u32>,
+    positions: &'a [DVec3],
+    index: usize,
+    normal: DVec3,
+}
+
+/// The point's shares of the triangles around it, in units of the farthest neighbour's distance.
+struct Fan {
+    reach: f64,
+    area: f64,
+    /// The triangles close around the point and are those of the whole cloud's triangulation.
+    complete: bool,
+}
+
+impl TangentPatch<'_> {
+    fn radius_and_area(&mut self, search: &NeighbourSearch, k: usize) -> (f64, f64) {
+        let centre = self.positions[self.index];
+        let distance = |j: u32| self.positions[j as usize].distance(centre);
+        search.nearest(self.index, k, self.neighbours);
+        let Some(nearest_distinct) = self
+            .neighbours
+            .iter()
+            .map(|&j| distance(j))
+            .find(|&d| d > 0.0)
+        else {
+            return (0.0, 0.0);
+        };
+        let sliver_limit =
+            SLIVER_CIRCUMRADIUS_LIMIT * self.neighbours.last().map_or(0.0, |&j| distance(j));
+
+        let mut count = k;
+        loop {
+            let scale = self.neighbours.last().map_or(0.0, |&j| distance(j));
+            let fan = self.fan(scale, sliver_limit / scale);
+            let grown = count * 2;
+            if fan.complete
+                || grown > k * NEIGHBOURHOOD_GROWTH_LIMIT
+                || self.neighbours.len() < count
+            {
+                return if fan.area > 0.0 {
+                    (fan.reach * scale, fan.area * scale * scale)
+                } else {
+                    let disc_area = std::f64::consts::PI * (nearest_distinct / 2.0).powi(2);
+                    (nearest_distinct, disc_area)
+                };
+            }
+            count = grown;
+            search.nearest(self.index, count, self.neighbours);
+        }
+    }
+
+    /// Triangulates the point with its neighbours, in units of `scale`, and sums up its shares of
+    /// the triangles around it whose circumradius is at most `sliver_limit`.
+    fn fan(&mut self, scale: f64, sliver_limit: f64) -> Fan {
+        let mut fan = Fan {
+            reach: 0.0,
+            area: 0.0,
+            complete: false,
+        };
+        let (u, v) = self
+            .normal
+            .try_normalize()
+            .unwrap_or(DVec3::Z)
+            .any_orthonormal_pair();
+        // Coordinates are of order 1; flushing the tiniest to zero keeps them inside the range
+        // spade accepts.
+        let planar = |x: f64| if x.abs() < 1e-12 { 0.0 } else { x };
+
+        // A cleared triangulation resets spade's search hint too, so reuse does not change
+        // results.
+        self.triangulation.clear();
+        let Ok(centre_vertex) = self.triangulation.insert(Point2::new(0.0, 0.0)) else {
+            return fan;
+        };
+        let centre = self.positions[self.index];
+        for &j in self.neighbours.iter() {
+            let offset = (self.positions[j as usize] - centre) / scale;
+            let point = Point2::new(planar(offset.dot(u)), planar(offset.dot(v)));
+            // Duplicates of the point (or points straight above it) would land on it.
+            if point.x == 0.0 && point.y == 0.0 {
+                continue;
+            }
+            // Spade rejects only coordinates it cannot represent; such a neighbour is left out.
+            let _ = self.triangulation.insert(point);
+        }
+
+        let mut closed = true;
+        let mut certain = true;
+        for edge in self.triangulation.vertex(centre_vertex).out_edges() {
+            if edge.face().is_outer() {
+                closed = false;
+                continue;
+            }
+            // The face lies to the left of the edge: its other corners are the ends of this edge
+            // and the next.
+            let [a, b] = [edge.to(), edge.next().to()].map(|vertex| {
+                let position = vertex.position();
+                DVec2::new(position.x, position.y)
+            });
+            // The circumcircle passes through the origin: its radius is the centre's distance,
+            // and it lies within the unit disc of the neighbourhood if that is at most 1/2.
+            let circumradius = circumcentre(a, b).length();
+            certain &= circumradius <= 0.5;
+            if circumradius <= sliver_limit {
+                let share = nearest_share(a, b);
+                fan.reach = fan.reach.max(share.reach());
+                fan.area += share.area();
+            }
+        }
+        fan.complete = closed && certain;
+        fan
+    }
+}
+
+/// Circumcentre of the triangle (origin, a, b); not finite when the triangle is degenerate.
+fn circumcentre(a: DVec2, b: DVec2) -> DVec2 {
+    let twice_area = 2.0 * a.perp_dot(b);
+    DVec2::new(
+        a.length_squared() * b.y - b.length_squared() * a.y,
+        b.length_squared() * a.x - a.length_squared() * b.x,
+    ) / twice_area
+}
+
+/// The part of triangle (origin, a, b) nearer to the origin than to `a` and to `b`: the triangle
+/// cut by the two perpendicular bisectors.
+fn nearest_share(a: DVec2, b: DVec2) -> ConvexPolygon {
+    let triangle = ConvexPolygon::from_corners(&[DVec2::ZERO, a, b]);
+    // Nearer to the origin than to `p` means x·p ≤ |p|²/2.
+    triangle
+        .clip(a, a.length_squared() / 2.0)
+        .clip(b, b.length_squared() / 2.0)
+}
+
+/// A convex polygon of up to six corners, enough for a triangle clipped twice (rounding can make
+/// a clipped polygon very slightly non-convex, and then one cut may add two corners).
+#[derive(Clone, Copy, Default)]
+struct ConvexPolygon {
+    corners: [DVec2; 6],
+    len: usize,
+}
+
+impl ConvexPolygon {
+    fn from_corners(corners: &[DVec2]) -> Self {
+        let mut polygon = ConvexPolygon::default();
+        for &corner in corners {
+            polygon.push(corner);
+        }
+        polygon
+    }
+
+    fn push(&mut self, corner: DVec2) {
+        if let Some(slot) = self.corners.get_mut(self.len) {
+            *slot = corner;
+            self.len += 1;
+        }
+    }
+
+    fn corners(&self) -> &[DVec2] {
+        &self.corners[..self.len]
+    }
+
+    /// The part where x·direction ≤ limit (Sutherland–Hodgman).
+    fn clip(&self, direction: DVec2, limit: f64) -> Self {
+        let mut clipped = ConvexPolygon::default();
+        let corners = self.corners();
+        for (i, &p) in corners.iter().enumerate() {
+            let q = corners[(i + 1) % corners.len()];
+            let (p_excess, q_excess) = (p.dot(direction) - limit, q.dot(direction) - limit);
+            if p_excess <= 0.0 {
+                clipped.push(p);
+            }
+            if (p_excess < 0.0 && q_excess > 0.0) || (p_excess > 0.0 && q_excess < 0.0) {
+                clipped.push(p + (q - p) * (p_excess / (p_excess - q_excess)));
+            }
+        }
+        clipped
+    }
+
+    /// Shoelace formula.
+    fn area(&self) -> f64 {
+        let corners = self.corners();
+        let twice: f64 = (0..corners.len())
+            .map(|i| corners[i].perp_dot(corners[(i + 1) % corners.len()]))
+            .sum();
+        twice.abs() / 2.0
+    }
+
+    /// The largest distance from the origin to the polygon.
+    fn reach(&self) -> f64 {
+        self.corners()
+            .iter()
+            .map(|corner| corner.length())
+            .fold(0.0, f64::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    const BAD: &str = "bad.ply";
+
+    /// A value as the test PLY encoder writes it.
+    #[derive(Clone, Debug)]
+    enum Value {
+        Float(f32),
+        UChar(u8),
+        Int(i32),
+        /// A list with uchar count and int items.
+        List(Vec<i32>),
+    }
+
+    /// Encodes `header` (element and property lines) and `records` in the given PLY format.
+    fn encode_ply(format: &str, header: &str, records: &[Vec<Value>]) -> Vec<u8> {
+        let mut bytes =
+            format!("ply\nformat {format} 1.0\ncomment test data\n{header}end_header\n")
+                .into_bytes();
+        let big_endian = format == "binary_big_endian";
+        for record in records {
+            if format == "ascii" {
+                let words: Vec<String> = record
+                    .iter()
+                    .map(|value| match value {
+                        Value::Float(v) => v.to_string(),
+                        Value::UChar(v) => v.to_string(),
+                        Value::Int(v) => v.to_string(),
+                        Value::List(items) => std::iter::once(items.len().to_string())
+                            .chain(items.iter().map(i32::to_string))
+                            .collect::<Vec<_>>()
+                            .join(" "),
+                    })
+                    .collect();
+                bytes.extend(format!("{}\n", words.join(" ")).into_bytes());
+                continue;
+            }
+            let mut push = |be: &[u8], le: &[u8]| bytes.extend(if big_endian { be } else { le });
+            for value in record {
+                match value {
+                    Value::Float(v) => push(&v.to_be_bytes(), &v.to_le_bytes()),
+                    Value::UChar(v) => push(&[*v], &[*v]),
+                    Value::Int(v) => push(&v.to_be_bytes(), &v.to_le_bytes()),
+                    Value::List(items) => {
+                        push(&[items.len() as u8], &[items.len() as u8]);
+                        for item in items {
+                            push(&item.to_be_bytes(), &item.to_le_bytes());
+                        }
+                    }
+                }
+            }
+        }
+        bytes
+    }
+
+    const CAMERA: &str = "element camera 1\nproperty float view_x\nproperty list uchar int tags\n";
+    const VERTICES: &str = "element vertex 3\n\
+        property float x\nproperty float y\nproperty float z\n\
+        property float nx\nproperty float ny\nproperty float nz\n\
+        property uchar red\nproperty uchar green\nproperty uchar blue\n\
+        property float radius\nproperty int flags\n";
+    const FACE: &str = "element face 1\nproperty list uchar int vertex_indices\n";
+    /// Bytes of one binary vertex record: six floats, three uchars, a float and an int.
+    const VERTEX_BYTES: usize = 6 * 4 + 3 + 4 + 4;
+    /// Bytes of the binary face record: a uchar count and three ints.
+    const FACE_BYTES: usize = 1 + 3 * 4;
+
+    fn full_header() -> String {
+        format!("{CAMERA}{VERTICES}{FACE}")
+    }
+
+    fn vertex(position: [f32; 3], normal: [f32; 3], rgb: [u8; 3], radius: f32) -> Vec<Value> {
+        let flags = Value::Int(-4);
+        let floats = position.into_iter().chain(normal).map(Value::Float);
+        let colours = rgb.map(Value::UChar);
+        floats
+            .chain(colours)
+            .chain([Value::Float(radius), flags])
+            .collect()
+    }
+
+    fn full_records() -> Vec<Vec<Value>> {
+        vec![
+            vec![Value::Float(2.5), Value::List(vec![7, -8])],
+            vertex([0.001, -1.25, 3.0e6], [0.0, 0.0, 2.0], [0, 128, 255], 0.125),
+            vertex([-7.5, 0.1, 1.0 / 3.0], [3.0, -4.0, 0.0], [255, 1, 64], 2.0),
+            vertex([1e-30, 123.456, -0.0], [0.6, 0.0, 0.8], [10, 20, 30], 1e-3),
+            vec![Value::List(vec![0, 1, 2])],
+        ]
+    }
+
+    fn parse(bytes: &[u8]) -> Result<PointCloud> {
+        parse_ply(bytes, Path::new(BAD))
+    }
+
+    /// Parses `bytes`, expecting an error that names the file and `field`; returns the message.
+    fn expect_error(bytes: &[u8], field: &str) -> String {
+        let message = match parse(bytes) {
+            Ok(cloud) => panic!(
+                "expected an error at {field}, got {} points",
+                cloud.positions.len()
+            ),
+            Err(error) => error.to_string(),
+        };
+        assert!(
+            message.starts_with(&format!("{BAD}: {field}: ")),
+            "`{message}` should name {BAD} and {field}"
+        );
+        message
+    }
+
+    #[test]
+    fn ascii_and_binary_encodings_read_alike() {
+        let records = full_records();
+        let ascii = parse(&encode_ply("ascii", &full_header(), &records)).unwrap();
+        let little = parse(&encode_ply(
+            "binary_little_endian",
+            &full_header(),
+            &records,
+        ))
+        .unwrap();
+        let big = parse(&encode_ply("binary_big_endian", &full_header(), &records)).unwrap();
+        let crlf = String::from_utf8(encode_ply("ascii", &full_header(), &records))
+            .unwrap()
+            .replace('\n', "\r\n");
+        assert_eq!(ascii, little);
+        assert_eq!(ascii, big);
+        assert_eq!(ascii, parse(crlf.as_bytes()).unwrap());
+
+        assert_eq!(
+            ascii.positions[0],
+            DVec3::new(0.001f32.into(), -1.25, 3.0e6)
+        );
+        assert_eq!(ascii.positions[1].y, f64::from(0.1f32));
+        let normals = ascii.normals.as_ref().unwrap();
+        assert_eq!(normals[0], DVec3::Z);
+        assert!((normals[1] - DVec3::new(0.6, -0.8, 0.0)).length() < 1e-15);
+        let colors = ascii.colors.as_ref().unwrap();
+        assert_eq!(colors[0][0], 0.0);
+        assert!(
+            (colors[0][1] - 0.215_861).abs() < 1e-5,
+            "sRGB 128 decodes to 0.2159"
+        );
+        assert_eq!(colors[0][2], 1.0);
+        assert_eq!(ascii.radii, Some(vec![0.125, 2.0, f64::from(1e-3f32)]));
+    }
+
+    #[test]
+    fn write_ply_round_trips_exactly() {
+        let full = PointCloud {
+            positions: vec![
+                DVec3::new(0.1, -1.0 / 3.0, 1e-300),
+                DVec3::new(2e15, 0.0, -7.25),
+            ],
+            normals: Some(vec![DVec3::new(0.6, 0.0, 0.8), DVec3::new(0.0, -1.0, 0.0)]),
+            colors: Some(vec![[0.0, 0.5, 1.0], [0.123_456_79, 0.9, 0.01]]),
+            radii: Some(vec![0.3, 1.0 / 7.0]),
+        };
+        let bare = PointCloud {
+            positions: full.positions.clone(),
+            ..PointCloud::default()
+        };
+        for cloud in [full, bare] {
+            for binary in [false, true] {
+                let mut bytes = Vec::new();
+                write_ply(&cloud, binary, &mut bytes).unwrap();
+                assert_eq!(parse(&bytes).unwrap(), cloud, "binary: {binary}");
+            }
+        }
+    }
+
+    #[test]
+    fn write_ply_rejects_mismatched_attributes() {
+        let cloud = PointCloud {
+            positions: vec![DVec3::ZERO; 2],
+            radii: Some(vec![1.0]),
+            ..PointCloud::default()
+        };
+        let error = write_ply(&cloud, true, &mut Vec::new()).unwrap_err();
+        assert_eq!(error.kind(), std::io::ErrorKind::InvalidInput);
+    }
+
+    #[test]
+    fn read_ply_gunzips_gz_files() {
+        use flate2::{write::GzEncoder, Compression};
+        let bytes = encode_ply("binary_big_endian", &full_header(), &full_records());
+        let path = std::env::temp_dir().join(format!("streak-test-{}.ply.gz", std::process::id()));
+        let mut encoder = GzEncoder::new(Vec::new(), Compression::fast());
+        encoder.write_all(&bytes).unwrap();
+        std::fs::write(&path, encoder.finish().unwrap()).unwrap();
+        let from_gz = read_ply(&path);
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(from_gz.unwrap(), parse(&bytes).unwrap());
+
+        let missing = read_ply(Path::new("/nonexistent/cloud.ply")).unwrap_err();
+        assert!(matches!(missing, Error::Io { .. }));
+    }
+
+    fn shared_data(relative: &str) -> PathBuf {
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(relative)
+    }
+
+    #[test]
+    fn reads_ascii_range_scan_with_trailing_list_element() {
+        let cloud = read_ply(&shared_data("points/bunny_range_scan_bun000.ply")).unwrap();
+        assert_eq!(cloud.positions.len(), 40_256);
+        assert!(cloud.normals.is_none() && cloud.colors.is_none() && cloud.radii.is_none());
+        let first = [-0.06325f32, 0.0359793, 0.0420873].map(f64::from);
+        assert_eq!(cloud.positions[0], DVec3::from_array(first));
+    }
+
+    #[test]
+    fn reads_binary_mesh_except_for_its_one_zero_normal() {
+        let path = shared_data("meshes/dragon_100k.ply");
+        // The file stores a zero normal for vertex 9121 (a vertex of degenerate faces only).
+        let message = read_ply(&path).unwrap_err().to_string();
+        assert!(
+            message.contains("vertex 9121: normal has zero length"),
+            "{message}"
+        );
+
+        // With that one normal repaired in memory, every vertex loads, faces skipped.
+        let mut bytes = std::fs::read(&path).unwrap();
+        let header_end = b"end_header\n";
+        let body = header_end.len()
+            + bytes
+                .windows(header_end.len())
+                .position(|w| w == header_end)
+                .unwrap();
+        let nz = body + 9121 * 24 + 20;
+        assert_eq!(bytes[nz - 8..nz + 4], [0; 12]);
+        bytes[nz..nz + 4].copy_from_slice(&1.0f32.to_le_bytes());
+        let cloud = parse_ply(&bytes, &path).unwrap();
+        assert_eq!(cloud.positions.len(), 50_002);
+        let normals = cloud.normals.unwrap();
+        assert_eq!(normals.len(), 50_002);
+        assert!(normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-12));
+    }
+
+    const XYZ: &str = "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n";
+    const YZ: &str = "property float y\nproperty float z\n";
+
+    fn ascii(header: &str, body: &str) -> Vec<u8> {
+        format!("ply\nformat ascii 1.0\n{header}end_header\n{body}").into_bytes()
+    }
+
+    #[test]
+    fn malformed_headers_are_errors() {
+        expect_error(b"", "header line 1");
+        expect_error(b"solid cube\nfacet normal 0 0 1\n", "header line 1");
+        let message = expect_error(b"\x1f\x8b\x08\x00", "header line 1");
+        assert!(message.contains("gzip"));
+        let message = expect_error(b"ply\nformat binary_middle_endian 1.0\n", "header line 2");
+        assert!(message.contains("binary_middle_endian"));
+        expect_error(b"ply\nformat ascii 1.0\nelement vertex 1\n", "header");
+        expect_error(
+            b"ply\nelement vertex 1\nproperty float x\nend_header\n",
+            "header",
+        );
+        expect_error(&ascii("element vertex -3\n", ""), "header line 3");
+        expect_error(&ascii("element vertex many\n", ""), "header line 3");
+        expect_error(&ascii("property float x\n", ""), "header line 3");
+        expect_error(
+            &ascii("element vertex 1\nproperty float128 x\n", ""),
+            "header line 4",
+        );
+        expect_error(
+            &ascii("element vertex 1\nproperty list float int x\n", ""),
+            "header line 4",
+        );
+        expect_error(
+            &ascii("element vertex 1\nelement vertex 1\n", ""),
+            "header line 4",
+        );
+        expect_error(
+            &ascii("element face 1\nproperty uchar n\n", "1\n"),
+            "element vertex",
+        );
+    }
+
+    #[test]
+    fn missing_or_mistyped_properties_are_errors() {
+        let message = expect_error(
+            &ascii(&format!("element vertex 1\n{YZ}"), "1 2\n"),
+            "element vertex",
+        );
+        assert!(message.ends_with("missing: x"), "{message}");
+        let message = expect_error(
+            &ascii(&format!("{XYZ}property float nx\n"), ""),
+            "element vertex",
+        );
+        assert!(message.ends_with("missing: ny nz"), "{message}");
+        let message = expect_error(
+            &ascii(
+                &format!("element vertex 1\nproperty list uchar float x\n{YZ}"),
+                "",
+            ),
+            "element vertex",
+        );
+        assert!(message.contains("list"));
+        let colours = "property int red\nproperty int green\nproperty int blue\n";
+        let message = expect_error(&ascii(&format!("{XYZ}{colours}"), ""), "element vertex");
+        assert!(message.contains("uchar"));
+        let no_vertices = XYZ.replace("vertex 2", "vertex 0");
+        expect_error(&ascii(&no_vertices, ""), "element vertex");
+    }
+
+    #[test]
+    fn bad_values_are_errors_naming_vertex_and_property() {
+        let message = expect_error(&ascii(XYZ, "1 2 3\nnan 2 3\n"), "vertex 1 property x");
+        assert!(message.contains("NaN"));
+        expect_error(&ascii(XYZ, "1 2 3\n4 five 6\n"), "vertex 1 property y");
+        expect_error(&ascii(XYZ, "1 2 3\n4 1e39 6\n"), "vertex 1 property y");
+        expect_error(&ascii(XYZ, "1 2\n4 5 6\n"), "vertex 0 property z");
+        expect_error(&ascii(XYZ, "1 2 3 4\n4 5 6\n"), "vertex 0");
+
+        let inf_header =
+            "element vertex 2\nproperty float x\nproperty double y\nproperty float z\n";
+        let mut binary = b"ply\nformat binary_little_endian 1.0\n".to_vec();
+        binary.extend(format!("{inf_header}end_header\n").bytes());
+        binary.extend(1.0f32.to_le_bytes());
+        binary.extend(f64::INFINITY.to_le_bytes());
+        binary.extend(3.0f32.to_le_bytes());
+        expect_error(&binary, "vertex 0 property y");
+
+        let normals = "property float nx\nproperty float ny\nproperty float nz\n";
+        let message = expect_error(
+            &ascii(&format!("{XYZ}{normals}"), "0 0 0 0 0 1\n1 1 1 0 0 0\n"),
+            "vertex 1",
+        );
+        assert!(message.contains("normal has zero length"), "{message}");
+
+        let colours = "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+        expect_error(
+            &ascii(&format!("{XYZ}{colours}"), "0 0 0 1 2 3\n0 0 0 1 256 3\n"),
+            "vertex 1 property green",
+        );
+        let float_colours = "property float red\nproperty float green\nproperty float blue\n";
+        expect_error(
+            &ascii(&format!("{XYZ}{float_colours}"), "0 0 0 0 0.5 255\n"),
+            "vertex 0 property blue",
+        );
+        expect_error(
+            &ascii(
+                &format!("{XYZ}property float radius\n"),
+                "0 0 0 1\n0 0 0 -1\n",
+            ),
+            "vertex 1 property radius",
+        );
+    }
+
+    #[test]
+    fn short_data_is_an_error() {
+        let message = expect_error(&ascii(XYZ, "1 2 3\n"), "element vertex");
+        assert!(message.contains("declares 2 vertices"), "{message}");
+
+        let bytes = encode_ply("binary_little_endian", &full_header(), &full_records());
+        let vertex_start = bytes.len() - FACE_BYTES - 3 * VERTEX_BYTES;
+        expect_error(&bytes[..vertex_start + VERTEX_BYTES], "element vertex");
+        expect_error(
+            &bytes[..vertex_start + VERTEX_BYTES + 5],
+            "vertex 1 property y",
+        );
+        expect_error(&bytes[..vertex_start - 2], "camera 0 property tags");
+
+        let huge = format!("element vertex 1000000000000000000\nproperty float x\n{YZ}");
+        expect_error(&ascii(&huge, "1 2 3\n"), "element vertex");
+        let mut binary =
+            format!("ply\nformat binary_big_endian 1.0\n{huge}end_header\n").into_bytes();
+        binary.extend([0u8; 24]);
+        expect_error(&binary, "element vertex");
+        let huge_skipped = "element thing 1000000000000000000\nproperty uchar a\n";
+        expect_error(
+            &ascii(&format!("{huge_skipped}{XYZ}"), "1\n2\n"),
+            "element thing",
+        );
+    }
+
+    #[test]
+    fn damaged_files_never_panic() {
+        // Faces before the vertices, so that every byte matters.
+        let header = format!("{CAMERA}{FACE}{VERTICES}");
+        let mut records = full_records();
+        records[1..].rotate_right(1);
+        for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
+            let bytes = encode_ply(format, &header, &records);
+            assert_eq!(parse(&bytes).unwrap().positions.len(), 3);
+            for end in 0..bytes.len() - 1 {
+                assert!(parse(&bytes[..end]).is_err(), "{format} cut at {end}");
+            }
+            for index in 0..bytes.len() {
+                for flip in [0x01, 0x80, 0xff] {
+                    let mut damaged = bytes.clone();
+                    damaged[index] ^= flip;
+                    let _ = parse(&damaged);
+                }
+            }
+        }
+    }
+
+    /// Points spread evenly over the unit sphere (golden-angle spiral).
+    fn fibonacci_sphere(count: usize) -> Vec<DVec3> {
+        let golden_angle = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..count)
+            .map(|i| {
+                let z = 1.0 - (2 * i + 1) as f64 / count as f64;
+                let ring = (1.0 - z * z).sqrt();
+                let angle = golden_angle * i as f64;
+                DVec3::new(ring * angle.cos(), ring * angle.sin(), z)
+            })
+            .collect()
+    }
+
+    /// A small deterministic random number generator (SplitMix64).
+    struct Random(u64);
+
+    impl Random {
+        fn unit(&mut self) -> f64 {
+            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        }
+
+        fn on_sphere(&mut self) -> DVec3 {
+            let z = 2.0 * self.unit() - 1.0;
+            let angle = std::f64::consts::TAU * self.unit();
+            let ring = (1.0 - z * z).sqrt();
+            DVec3::new(ring * angle.cos(), ring * angle.sin(), z)
+        }
+    }
+
+    /// A `side` × `side` grid of spacing 1 in the z = 0 plane, each point moved by up to
+    /// `jitter` in x and y and `z_noise` in z.
+    fn jittered_grid(side: usize, jitter: f64, z_noise: f64, random: &mut Random) -> Vec<DVec3> {
+        let mut points = Vec::new();
+        for row in 0..side {
+            for column in 0..side {
+                let mut wobble = || 2.0 * random.unit() - 1.0;
+                points.push(DVec3::new(
+                    column as f64 + jitter * wobble(),
+                    row as f64 + jitter * wobble(),
+                    z_noise * wobble(),
+                ));
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn sphere_normals_point_outward_within_two_degrees() {
+        let points = fibonacci_sphere(2000);
+        let normals = estimate_normals(&points, 12);
+        let worst = points
+            .iter()
+            .zip(&normals)
+            .map(|(p, n)| p.normalize().angle_between(*n).to_degrees())
+            .fold(0.0, f64::max);
+        assert!(worst < 2.0, "worst deviation {worst}°");
+    }
+
+    #[test]
+    fn separate_parts_are_each_oriented_outward() {
+        let sphere = fibonacci_sphere(500);
+        let centres = [DVec3::new(-10.0, 0.0, 0.0), DVec3::new(10.0, 0.0, 0.0)];
+        let points: Vec<DVec3> = centres
+            .iter()
+            .flat_map(|&c| sphere.iter().map(move |&p| c + 2.0 * p))
+            .collect();
+        let normals = estimate_normals(&points, 10);
+        for (i, normal) in normals.iter().enumerate() {
+            let outward = sphere[i % 500];
+            assert!(
+                outward.angle_between(*normal).to_degrees() < 5.0,
+                "point {i}"
+            );
+        }
+    }
+
+    #[test]
+    fn plane_normals_are_all_the_same_z() {
+        // Turned about the x axis too, where the eigenvectors' signs vary from point to point and
+        // only the orientation step makes them agree.
+        let grid = jittered_grid(30, 0.3, 1e-3, &mut Random(7));
+        for turn in [0.0, 1.0f64] {
+            let rotation = glam::DQuat::from_rotation_x(turn);
+            let points: Vec<DVec3> = grid.iter().map(|&p| rotation * p).collect();
+            let plane_normal = rotation * DVec3::Z;
+            let normals = estimate_normals(&points, 12);
+            let sign = normals[0].dot(plane_normal).signum();
+            for normal in &normals {
+                assert!((normal.length() - 1.0).abs() < 1e-12);
+                assert!(
+                    normal.dot(plane_normal) * sign > 0.0,
+                    "orientation differs: {normal}"
+                );
+                assert!((sign * *normal).angle_between(plane_normal).to_degrees() < 1.0);
+            }
+        }
+    }
+
+    #[test]
+    fn degenerate_normal_inputs_give_unit_normals() {
+        assert!(estimate_normals(&[], 12).is_empty());
+        let single = estimate_normals(&[DVec3::ONE], 12);
+        assert!((single[0].length() - 1.0).abs() < 1e-12);
+
+        let direction = DVec3::new(1.0, 2.0, 2.0) / 3.0;
+        let line: Vec<DVec3> = (0..20).map(|i| direction * i as f64).collect();
+        for points in [&line[..2], &line[..]] {
+            for normal in estimate_normals(points, 12) {
+                assert!((normal.length() - 1.0).abs() < 1e-12);
+                assert!(normal.dot(direction).abs() < 1e-9, "{normal} not ⟂ line");
+            }
+        }
+
+        let mut crowded = jittered_grid(10, 0.2, 0.0, &mut Random(3));
+        crowded.extend(std::iter::repeat_n(DVec3::new(4.5, 4.5, 0.0), 40));
+        crowded.extend(crowded[..50].to_vec());
+        for normal in estimate_normals(&crowded, 8) {
+            assert!((normal.length() - 1.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn sphere_radii_cover_the_surface_and_areas_sum_to_its_area() {
+        let points = fibonacci_sphere(20_000);
+        let normals = points.clone();
+        let (radii, areas) = estimate_radii_and_areas(&points, &normals, 12);
+
+        let total_area: f64 = areas.iter().sum();
+        let sphere_area = 4.0 * std::f64::consts::PI;
+        assert!(
+            (total_area / sphere_area - 1.0).abs() < 0.03,
+            "area {total_area} vs {sphere_area}"
+        );
+        // A loose upper bound, so that covering cannot come from absurdly large discs.
+        let spacing = (sphere_area / points.len() as f64).sqrt();
+        let largest = radii.iter().copied().fold(0.0, f64::max);
+        assert!(
+            largest < spacing,
+            "largest radius {largest}, spacing {spacing}"
+        );
+
+        let samples: Vec<[f64; 3]> = points.iter().map(|p| p.to_array()).collect();
+        let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&samples).unwrap();
+        let mut random = Random(11);
+        let uncovered = (0..10_000)
+            .filter(|_| {
+                let spot = random.on_sphere();
+                let nearby = tree
+                    .query(&spot.to_array())
+                    .nearest_n::<SquaredEuclidean<f64>>(NonZeroUsize::new(16).unwrap())
+                    .execute();
+                !nearby.iter().any(|sample| {
+                    let j = sample.item as usize;
+                    let offset = spot - points[j];
+                    let in_plane = offset - offset.dot(normals[j]) * normals[j];
+                    in_plane.length() <= radii[j]
+                })
+            })
+            .count();
+        assert_eq!(uncovered, 0, "random spots not covered by any disc");
+    }
+
+    #[test]
+    fn plane_radii_and_areas_match_the_sampling() {
+        let points = jittered_grid(40, 0.2, 0.0, &mut Random(5));
+        let normals = vec![DVec3::Z; points.len()];
+        let (radii, areas) = estimate_radii_and_areas(&points, &normals, 12);
+        assert!(
+            radii.iter().all(|&r| r > 0.3 && r < 1.5),
+            "radii out of range"
+        );
+        let total_area: f64 = areas.iter().sum();
+        assert!(
+            (total_area / (39.0 * 39.0) - 1.0).abs() < 0.03,
+            "area {total_area}"
+        );
+    }
+
+    #[test]
+    fn triangles_are_shared_out_by_nearest_corner() {
+        let close = |x: f64, y: f64| (x - y).abs() < 1e-12;
+        // Equilateral: a third each, reaching to the circumcentre.
+        let (a, b) = (DVec2::new(1.0, 0.0), DVec2::new(0.5, 0.75f64.sqrt()));
+        let share = nearest_share(a, b);
+        assert!(close(share.area(), 0.75f64.sqrt() / 6.0));
+        assert!(close(share.reach(), 1.0 / 3f64.sqrt()));
+        assert!(close(circumcentre(a, b).length(), 1.0 / 3f64.sqrt()));
+        // Right angle at the origin: a unit square, reaching the hypotenuse's midpoint.
+        let share = nearest_share(DVec2::new(2.0, 0.0), DVec2::new(0.0, 2.0));
+        assert!(close(share.area(), 1.0) && close(share.reach(), 2f64.sqrt()));
+        // Flat triangle with the obtuse angle at (1, 0.1): the circumradius is over 5, yet no
+        // spot is farther than 0.505 from its nearest corner.
+        let (a, b) = (DVec2::new(2.0, 0.0), DVec2::new(1.0, 0.1));
+        assert!(circumcentre(a, b).length() > 5.0);
+        assert!(close(nearest_share(a, b).reach(), 0.505));
+        let shares = [
+            nearest_share(a, b),
+            nearest_share(-a, b - a),
+            nearest_share(-b, a - b),
+        ];
+        assert!(shares.iter().all(|share| share.reach() <= 0.505 + 1e-12));
+        let total: f64 = shares.iter().map(ConvexPolygon::area).sum();
+        assert!(
+            close(total, 0.1),
+            "the shares partition the triangle: {total}"
+        );
+    }
+
+    #[test]
+    fn square_grid_areas_do_not_depend_on_diagonals() {
+        let grid: Vec<DVec3> = (0..400)
+            .map(|i| DVec3::new((i % 20) as f64, (i / 20) as f64, 0.0))
+            .collect();
+        let (radii, areas) = estimate_radii_and_areas(&grid, &vec![DVec3::Z; 400], 12);
+        for (i, (radius, area)) in radii.iter().zip(&areas).enumerate() {
+            let inner = (1..19).contains(&(i % 20)) && (1..19).contains(&(i / 20));
+            if inner {
+                assert!((area - 1.0).abs() < 1e-9, "point {i}: area {area}");
+                assert!(
+                    (radius - 0.5f64.sqrt()).abs() < 1e-9,
+                    "point {i}: radius {radius}"
+                );
+            }
+        }
+        let total: f64 = areas.iter().sum();
+        assert!((total - 19.0 * 19.0).abs() < 1e-6, "total {total}");
+    }
+
+    #[test]
+    fn irregular_sampling_is_covered_and_areas_add_up() {
+        // Uniform random points: with only their 12 nearest neighbours many points would miss
+        // some of their triangles (about a tenth of the area, and holes).
+        let mut random = Random(17);
+        let points: Vec<DVec3> = (0..5000)
+            .map(|_| DVec3::new(random.unit(), random.unit(), 0.0))
+            .collect();
+        let normals = vec![DVec3::Z; points.len()];
+        let (radii, areas) = estimate_radii_and_areas(&points, &normals, 12);
+        let total: f64 = areas.iter().sum();
+        assert!((total - 1.0).abs() < 0.03, "area {total}");
+        let uncovered = (0..5000)
+            .filter(|_| {
+                let spot = DVec3::new(0.05 + 0.9 * random.unit(), 0.05 + 0.9 * random.unit(), 0.0);
+                !points
+                    .iter()
+                    .zip(&radii)
+                    .any(|(point, radius)| point.distance(spot) <= *radius)
+            })
+            .count();
+        assert_eq!(uncovered, 0, "random spots not covered by any disc");
+    }
+
+    #[test]
+    fn duplicate_and_isolated_points_get_fallback_radii() {
+        let (radii, areas) = estimate_radii_and_areas(&[DVec3::ONE; 5], &[DVec3::Z; 5], 12);
+        assert_eq!((radii, areas), (vec![0.0; 5], vec![0.0; 5]));
+
+        // Collinear points have no triangles: the nearest distinct neighbour gives the radius.
+        let line: Vec<DVec3> = (0..6).map(|i| DVec3::X * (2 * i) as f64).collect();
+        let (radii, _) = estimate_radii_and_areas(&line, &[DVec3::Z; 6], 4);
+        assert_eq!(radii, vec![2.0; 6]);
+
+        let mut doubled = jittered_grid(12, 0.2, 0.0, &mut Random(9));
+        doubled.extend(doubled.clone());
+        let (radii, areas) = estimate_radii_and_areas(&doubled, &vec![DVec3::Z; doubled.len()], 12);
+        assert!(radii
+            .iter()
+            .chain(&areas)
+            .all(|&v| v.is_finite() && v > 0.0));
+    }
+
+    #[test]
+    fn estimates_are_deterministic_across_runs_and_thread_counts() {
+        let mut random = Random(13);
+        let points: Vec<DVec3> = fibonacci_sphere(3000)
+            .into_iter()
+            .map(|p| p * (1.0 + 0.01 * random.unit()))
+            .collect();
+        let estimate = || {
+            let normals = estimate_normals(&points, 12);
+            let (radii, areas) = estimate_radii_and_areas(&points, &normals, 12);
+            let bits = |values: &[f64]| values.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            let normal_bits: Vec<[u64; 3]> = normals
+                .iter()
+                .map(|n| n.to_array().map(f64::to_bits))
+                .collect();
+            (normal_bits, bits(&radii), bits(&areas))
+        };
+        let first = estimate();
+        assert_eq!(first, estimate());
+        let single_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        assert_eq!(first, single_thread.install(estimate));
+    }
 }

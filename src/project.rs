@@ -10,7 +10,9 @@
 use crate::camera::Camera;
 use crate::geometry::Surfel;
 use crate::motion::Pose;
-use crate::raster::{Footprint, Rejection, ScreenSplat, Sym2, PREFILTER_VARIANCE_PX2};
+use crate::raster::{
+    Footprint, Rejection, ScreenSplat, Sym2, CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2,
+};
 use crate::scene::{Lighting, Object};
 use glam::{DAffine3, DMat3, DVec2, DVec3};
 use rayon::prelude::*;
@@ -64,7 +66,12 @@ pub fn view_surfel(
     let (ju, jv) = (jacobian.apply(u_view), jacobian.apply(v_view));
     // Ratio of the axes' parallelogram areas on screen and in object space = the area scale.
     let object_area = surfel.axis_u.cross(surfel.axis_v).length();
-    let depth_tolerance = DEPTH_TOLERANCE_SIGMAS * u_view.length().max(v_view.length());
+    let disc_depth = DEPTH_TOLERANCE_SIGMAS * u_view.length().max(v_view.length());
+    let depth_gradient = plane_depth_gradient(camera, p_view, normal_view, depth, disc_depth);
+    // The pre-filter spreads the footprint beyond the disc; over that spread the plane's depth
+    // moves by |∇D|·(cut-off radius of the pre-filter), which the ternary test must allow too.
+    let prefilter_reach = CUTOFF_SIGMAS * PREFILTER_VARIANCE_PX2.sqrt();
+    let depth_tolerance = disc_depth + depth_gradient.length() * prefilter_reach;
     Some(SurfelView {
         splat: ScreenSplat {
             center,
@@ -75,13 +82,7 @@ pub fn view_surfel(
                 (instant.rotation * surfel.normal).normalize_or_zero(),
             ),
             depth,
-            depth_gradient: plane_depth_gradient(
-                camera,
-                p_view,
-                normal_view,
-                depth,
-                depth_tolerance,
-            ),
+            depth_gradient,
             depth_tolerance,
         },
         front_facing: normal_view.dot(p_view) < 0.0,
@@ -93,19 +94,20 @@ pub fn view_surfel(
 /// Along the ray through pixel offset (X, Y) from the image centre the plane lies at depth
 /// D = (n·p) / (n_x X/f − n_y Y/f − n_z), so at the splat's centre ∂D/∂x = −D² n_x / (f n·p)
 /// and ∂D/∂y = D² n_y / (f n·p). Near edge-on (n·p → 0) the plane is steep and the splat carries
-/// almost no weight; the gradient is capped at `cap` per pixel so that it stays finite.
+/// almost no weight; the gradient is capped at a thousand disc depths per pixel so that it stays
+/// finite.
 fn plane_depth_gradient(
     camera: &Camera,
     p_view: DVec3,
     normal_view: DVec3,
     depth: f64,
-    cap: f64,
+    disc_depth: f64,
 ) -> DVec2 {
     let k = normal_view.dot(p_view);
     let gradient =
         DVec2::new(-normal_view.x, normal_view.y) * (depth * depth / (camera.focal_px * k));
     if gradient.is_finite() {
-        gradient.clamp_length_max(cap)
+        gradient.clamp_length_max(1e3 * disc_depth)
     } else {
         DVec2::ZERO
     }

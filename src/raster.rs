@@ -69,6 +69,12 @@ impl Sym2 {
         }
     }
 
+    /// vᵀ S v.
+    #[must_use]
+    pub fn quadratic(&self, v: DVec2) -> f64 {
+        self.xx * v.x * v.x + 2.0 * self.xy * v.x * v.y + self.yy * v.y * v.y
+    }
+
     #[must_use]
     pub fn det(&self) -> f64 {
         self.xx * self.yy - self.xy * self.xy

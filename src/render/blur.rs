@@ -19,6 +19,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::project::{gather, object_footprints_at, view_surfel, Cull, Instant, SurfelView};
 use crate::raster::{Footprint, ScreenSplat, Sym2, PREFILTER_VARIANCE_PX2};
 use crate::scene::Scene;
+use glam::DVec2;
 use rayon::prelude::*;
 
 pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
@@ -70,6 +71,21 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
     Render { image, stats }
 }
 
+/// Depth gradient of a motion ellipse. A pixel on the chord is covered when the moving splat
+/// passes over it, so along the chord depth follows the surfel (Δd over the chord length) and
+/// across it the splat plane's gradient holds. When the chord is short against the splat's own
+/// spread along it, the along-chord slope would be extrapolated far past the chord's ends, so it
+/// fades out as chord² / (chord² + (2σ)²); the tolerance, which includes |Δd|/2, covers the rest.
+fn streak_depth_gradient(plane: DVec2, chord: DVec2, depth_change: f64, splat: Sym2) -> DVec2 {
+    let chord_sq = chord.length_squared();
+    if !(chord_sq > 0.0) {
+        return plane;
+    }
+    let along = chord / chord_sq.sqrt();
+    let across = plane - along * plane.dot(along);
+    across + chord * (depth_change / (chord_sq + 4.0 * splat.quadratic(along)))
+}
+
 /// The motion ellipse of one surfel over [t0, t1], seen as `a` at t0 and `b` at t1.
 fn motion_ellipse(
     scene: &Scene,
@@ -95,10 +111,7 @@ fn motion_ellipse(
     let chord_sq = chord.length_squared();
     if chained && chord_sq > 0.0 {
         // Spread of the splat along the chord, in chord lengths squared.
-        let along = (splat.xx * chord.x * chord.x
-            + 2.0 * splat.xy * chord.x * chord.y
-            + splat.yy * chord.y * chord.y)
-            / (chord_sq * chord_sq);
+        let along = splat.quadratic(chord) / (chord_sq * chord_sq);
         motion_variance = motion_variance.max(0.25 - along);
     }
     let ellipse = ScreenSplat {
@@ -107,7 +120,12 @@ fn motion_ellipse(
         weight: lerp(a.weight, b.weight) * moments.mass,
         colour: [0, 1, 2].map(|c| lerp(f64::from(a.colour[c]), f64::from(b.colour[c])) as f32),
         depth: lerp(a.depth, b.depth),
-        depth_gradient: a.depth_gradient.lerp(b.depth_gradient, s),
+        depth_gradient: streak_depth_gradient(
+            a.depth_gradient.lerp(b.depth_gradient, s),
+            chord,
+            b.depth - a.depth,
+            splat,
+        ),
         depth_tolerance: a.depth_tolerance.max(b.depth_tolerance) + 0.5 * (b.depth - a.depth).abs(),
     };
     ellipse

@@ -1,0 +1,220 @@
+//! The blur renderer against closed forms and the reference: one Gaussian splat moving along a
+//! line or an arc, energy, and the zero-motion limit.
+
+mod common;
+
+use common::*;
+use glam::DVec3;
+use streak::Method;
+
+/// Screen standard deviation of the test splat, px.
+const SIGMA_PX: f64 = 2.0;
+
+/// The exact box-shutter time average of a Gaussian of weight `weight` and covariance σ²I moving
+/// from `c0` by `m` (px), at pixel centres: ∫₀¹ N(x; c0 + t m, σ²I) dt. Written out: with
+/// a = mᵀm/σ², b = mᵀd/σ², c = dᵀd/σ² for d = x − c0, the exponent is −(a t² − 2 b t + c)/2, whose
+/// integral over [0, 1] is exp(−(c − b²/a)/2) √(π/2a) [erf(√(a/2)(1 − b/a)) − erf(−√(a/2) b/a)].
+fn exact_streak(
+    width: u32,
+    height: u32,
+    c0: [f64; 2],
+    m: [f64; 2],
+    variance: f64,
+    weight: f64,
+) -> Vec<f64> {
+    let norm = weight / (std::f64::consts::TAU * variance);
+    let a = (m[0] * m[0] + m[1] * m[1]) / variance;
+    let mut out = Vec::with_capacity((width * height) as usize);
+    for y in 0..height {
+        for x in 0..width {
+            let d = [x as f64 + 0.5 - c0[0], y as f64 + 0.5 - c0[1]];
+            let b = (m[0] * d[0] + m[1] * d[1]) / variance;
+            let c = (d[0] * d[0] + d[1] * d[1]) / variance;
+            let k = (a / 2.0).sqrt();
+            let integral = (-(c - b * b / a) / 2.0).exp()
+                * (std::f64::consts::PI / (2.0 * a)).sqrt()
+                * (libm::erf(k * (1.0 - b / a)) - libm::erf(-k * b / a));
+            out.push(norm * integral);
+        }
+    }
+    out
+}
+
+/// A splat translating 4 world units (≈ 48 px) to the right across a 128×64 image.
+fn translating_scene() -> (streak::Scene, Vec<f64>) {
+    let camera = camera(128, 64);
+    let scale = px_per_unit(&camera);
+    let surfel = facing_surfel(DVec3::ZERO, SIGMA_PX / scale);
+    let travel = 4.0;
+    let motion = motion(&[
+        (0.0, pose(DVec3::new(-travel / 2.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(travel / 2.0, 0.0, 0.0), 0.0)),
+    ]);
+    let weight = surfel.area * scale * scale;
+    let exact = exact_streak(
+        128,
+        64,
+        [64.0 - travel / 2.0 * scale, 32.0],
+        [travel * scale, 0.0],
+        SIGMA_PX * SIGMA_PX + streak::raster::PREFILTER_VARIANCE_PX2,
+        weight,
+    );
+    (scene(camera, vec![object(vec![surfel], motion)]), exact)
+}
+
+#[test]
+fn the_test_splat_stays_below_full_coverage() {
+    // The tests below read Σw straight off the image; that holds only while Σw < 1.
+    let (scene, _) = translating_scene();
+    let peak = red(&draw(&scene, Method::Static, 1.0, 1))
+        .into_iter()
+        .fold(0.0, f64::max);
+    assert!(peak > 0.1 && peak < 0.9, "{peak}");
+}
+
+#[test]
+fn reference_converges_to_the_closed_form_time_integral() {
+    let (scene, exact) = translating_scene();
+    let reference = red(&draw(&scene, Method::Reference, 1.0, 2048));
+    // 2048 frames are 0.02 px apart: what is left is the 3σ truncation of each frame's Gaussian
+    // across the streak (renormalized, so only its shape differs: ≈ 1.3 % in L1) and f32 rounding.
+    let error = relative_l1(&reference, &exact);
+    assert!(error < 0.02, "reference vs exact: {error}");
+}
+
+#[test]
+fn blur_matches_the_closed_form_when_segments_are_short() {
+    let (scene, exact) = translating_scene();
+    // τ = 0.125 px allows sub-segments of at most 4 px: twelve ellipses no longer than the splat
+    // is wide, so none needs widening; what is left is the truncation seen by the reference too.
+    let fine = red(&draw(&scene, Method::Blur, 0.125, 1));
+    let error = relative_l1(&fine, &exact);
+    assert!(error < 0.03, "blur τ=0.125 vs exact: {error}");
+    // One ellipse for the whole 48 px streak is Guan & Mueller's approximation: a Gaussian with
+    // the streak's variance instead of a flat-topped streak, a third off in L1 here.
+    let single = red(&draw(&scene, Method::Blur, 100.0, 1));
+    let coarse_error = relative_l1(&single, &exact);
+    assert!(
+        coarse_error > 5.0 * error,
+        "subdivision should pay: {coarse_error} vs {error}"
+    );
+}
+
+#[test]
+fn one_segment_is_the_summed_covariance_gaussian() {
+    // Guan & Mueller §3.3 / DESIGN.md: Σ + m mᵀ/12 for a box shutter, centred mid-path, same weight.
+    let (scene, _) = translating_scene();
+    let scale = px_per_unit(&scene.camera);
+    let surfel = &scene.objects[0].surfels[0];
+    let (weight, m) = (surfel.area * scale * scale, 4.0 * scale);
+    let variance = SIGMA_PX * SIGMA_PX + streak::raster::PREFILTER_VARIANCE_PX2;
+    let (vx, vy) = (variance + m * m / 12.0, variance);
+    let oracle: Vec<f64> = (0..64)
+        .flat_map(|y| (0..128).map(move |x| (x as f64 + 0.5 - 64.0, y as f64 + 0.5 - 32.0)))
+        .map(|(dx, dy)| {
+            weight / (std::f64::consts::TAU * (vx * vy).sqrt())
+                * (-0.5 * (dx * dx / vx + dy * dy / vy)).exp()
+        })
+        .collect();
+    let single = red(&draw(&scene, Method::Blur, 100.0, 1));
+    // The render truncates at 3σ and renormalizes: ≈ 2 % in L1 for an isolated 2D Gaussian.
+    let error = relative_l1(&single, &oracle);
+    assert!(error < 0.03, "single ellipse vs Σ + mmᵀ/12: {error}");
+}
+
+#[test]
+fn blur_matches_the_reference_when_segments_are_short() {
+    let (scene, _) = translating_scene();
+    let blur = red(&draw(&scene, Method::Blur, 0.125, 1));
+    let reference = red(&draw(&scene, Method::Reference, 1.0, 2048));
+    let error = relative_l1(&blur, &reference);
+    assert!(error < 0.02, "blur vs reference: {error}");
+}
+
+#[test]
+fn a_blurred_splat_carries_the_energy_of_the_static_one() {
+    let (scene, _) = translating_scene();
+    let total = |image: Vec<f64>| image.iter().sum::<f64>();
+    let still = total(red(&draw(&scene, Method::Static, 1.0, 1)));
+    for tolerance in [100.0, 4.0, 1.0, 0.25] {
+        let blurred = total(red(&draw(&scene, Method::Blur, tolerance, 1)));
+        // Pixel-centre sampling of Gaussians at least 0.55 px wide: within 0.5 %.
+        assert!(
+            (blurred / still - 1.0).abs() < 0.005,
+            "τ={tolerance}: {blurred} vs {still}"
+        );
+    }
+}
+
+/// A splat on a 2-unit arm (≈ 24 px) swinging 120° about the view axis.
+fn swinging_scene() -> streak::Scene {
+    let camera = camera(96, 96);
+    let surfel = facing_surfel(DVec3::new(2.0, 0.0, 0.0), 1.5 / px_per_unit(&camera));
+    let motion = motion(&[
+        (0.0, pose(DVec3::ZERO, 0.0)),
+        (0.5, pose(DVec3::ZERO, 60.0)),
+        (1.0, pose(DVec3::ZERO, 120.0)),
+    ]);
+    scene(camera, vec![object(vec![surfel], motion)])
+}
+
+#[test]
+fn curved_path_error_falls_as_sub_segments_increase() {
+    let scene = swinging_scene();
+    let reference = draw(&scene, Method::Reference, 1.0, 2048);
+    let errors: Vec<f64> = [8.0, 2.0, 0.5, 0.125]
+        .iter()
+        .map(|&tolerance| rmse(&draw(&scene, Method::Blur, tolerance, 1), &reference))
+        .collect();
+    for pair in errors.windows(2) {
+        assert!(
+            pair[1] < pair[0],
+            "errors must fall with the tolerance: {errors:?}"
+        );
+    }
+    assert!(errors[3] < 0.25 * errors[0], "{errors:?}");
+}
+
+#[test]
+fn zero_motion_blur_equals_static_equals_reference() {
+    let camera = camera(64, 64);
+    let surfels: Vec<_> = (0..40)
+        .map(|i| {
+            facing_surfel(
+                DVec3::new(-1.5 + 0.075 * i as f64, 0.3 * (i as f64).sin(), 0.0),
+                0.08,
+            )
+        })
+        .collect();
+    let still = scene(
+        camera.clone(),
+        vec![object(
+            surfels.clone(),
+            motion(&[(0.0, pose(DVec3::ZERO, 0.0))]),
+        )],
+    );
+    let static_image = draw(&still, Method::Static, 1.0, 1);
+    assert!(
+        static_image.pixels.iter().any(|p| p[0] > 0.5),
+        "the object must be visible"
+    );
+    assert_eq!(draw(&still, Method::Blur, 1.0, 1), static_image);
+    assert!(rmse(&draw(&still, Method::Reference, 1.0, 16), &static_image) < 1e-6);
+
+    // Keyframes that move by 1e-9 units: the plan sees motion, so the motion-ellipse path runs,
+    // and its limit must be the static image.
+    let barely = motion(&[
+        (0.0, pose(DVec3::ZERO, 0.0)),
+        (1.0, pose(DVec3::new(1e-9, 0.0, 0.0), 0.0)),
+    ]);
+    let moving = scene(camera, vec![object(surfels, barely)]);
+    assert!(streak::Plan::new(&moving, 1.0).any_moving());
+    let blurred = draw(&moving, Method::Blur, 1.0, 1);
+    let worst = blurred
+        .pixels
+        .iter()
+        .zip(&static_image.pixels)
+        .map(|(a, b)| (a[0] - b[0]).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-5, "{worst}");
+}

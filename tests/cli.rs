@@ -1,0 +1,246 @@
+//! The real binary: user mistakes get a message naming the file and field, and a non-zero exit;
+//! good input renders.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const SCENE: &str = r#"
+background = [0, 0, 0]
+
+[camera]
+eye = [0, 0, 5]
+target = [0, 0, 0]
+fov_y = 40
+width = 48
+height = 32
+
+[[object]]
+name = "ball"
+shape = { type = "sphere", radius = 1.0 }
+spacing = 0.1
+
+[[object.keyframe]]
+t = 0.0
+[[object.keyframe]]
+t = 1.0
+translate = [0.5, 0, 0]
+"#;
+
+/// A fresh folder for one test.
+fn workdir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("streak-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn streak(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_streak"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+/// Write `scene` into `dir`, render it, and return (exit success, stderr).
+fn render_scene(name: &str, scene: &str, files: &[(&str, &[u8])]) -> (bool, String) {
+    let dir = workdir(name);
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    for (file, bytes) in files {
+        std::fs::write(dir.join(file), bytes).unwrap();
+    }
+    let out = streak(&["render", "scene.toml", "-o", "out.png"], &dir);
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The scene must be rejected with a message containing every one of `needles`.
+fn rejected(name: &str, scene: &str, files: &[(&str, &[u8])], needles: &[&str]) {
+    let (ok, stderr) = render_scene(name, scene, files);
+    assert!(!ok, "{name}: should fail");
+    assert!(!stderr.contains("panicked"), "{name}: panicked: {stderr}");
+    for needle in needles {
+        assert!(
+            stderr.contains(needle),
+            "{name}: {needle:?} missing from: {stderr}"
+        );
+    }
+}
+
+#[test]
+fn a_good_scene_renders_and_explains_itself() {
+    let dir = workdir("good");
+    std::fs::write(dir.join("scene.toml"), SCENE).unwrap();
+    let out = streak(
+        &[
+            "render",
+            "scene.toml",
+            "-m",
+            "blur",
+            "-o",
+            "out.png",
+            "--exr",
+            "out.exr",
+            "--explain",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("\"ball\"") && stdout.contains("moving") && stdout.contains("back-facing"),
+        "{stdout}"
+    );
+    let png = image::open(dir.join("out.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (48, 32));
+    assert!(dir.join("out.exr").exists());
+}
+
+#[test]
+fn unknown_keys_are_rejected() {
+    rejected(
+        "unknown",
+        &SCENE.replace("fov_y = 40", "fov_y = 40\nzoom = 2"),
+        &[],
+        &["scene.toml", "zoom", "line"],
+    );
+}
+
+#[test]
+fn missing_fields_are_rejected() {
+    rejected(
+        "missing",
+        &SCENE.replace("fov_y = 40\n", ""),
+        &[],
+        &["scene.toml", "fov_y"],
+    );
+    rejected(
+        "no-spacing",
+        &SCENE.replace("spacing = 0.1\n", ""),
+        &[],
+        &["object[0].spacing"],
+    );
+}
+
+#[test]
+fn non_finite_numbers_are_rejected() {
+    rejected(
+        "nan",
+        &SCENE.replace("radius = 1.0", "radius = nan"),
+        &[],
+        &["object[0].shape.radius"],
+    );
+    rejected(
+        "inf",
+        &SCENE.replace("translate = [0.5, 0, 0]", "translate = [inf, 0, 0]"),
+        &[],
+        &["object[0].keyframe[1].translate[0]"],
+    );
+}
+
+#[test]
+fn keyframes_out_of_order_or_outside_the_frame_are_rejected() {
+    rejected(
+        "order",
+        &SCENE.replace("t = 1.0", "t = 0.0"),
+        &[],
+        &["object[0].keyframe[1].t", "increase"],
+    );
+    rejected(
+        "range",
+        &SCENE.replace("t = 1.0", "t = 1.5"),
+        &[],
+        &["object[0].keyframe[1].t", "[0, 1]"],
+    );
+}
+
+#[test]
+fn bad_shutters_and_cameras_are_rejected() {
+    rejected(
+        "shutter",
+        &format!("{SCENE}\n[shutter]\nopen = 0.8\nclose = 0.2\n"),
+        &[],
+        &["shutter", "open < close"],
+    );
+    rejected(
+        "fov",
+        &SCENE.replace("fov_y = 40", "fov_y = 190"),
+        &[],
+        &["camera.fov_y"],
+    );
+    rejected(
+        "eye",
+        &SCENE.replace("eye = [0, 0, 5]", "eye = [0, 0, 0]"),
+        &[],
+        &["camera.target"],
+    );
+}
+
+const PLY_SCENE: &str = r#"
+[camera]
+eye = [0, 0, 5]
+target = [0, 0, 0]
+fov_y = 40
+width = 32
+height = 32
+
+[[object]]
+shape = { type = "ply", path = "cloud.ply" }
+"#;
+
+#[test]
+fn unreadable_and_malformed_ply_files_are_rejected() {
+    rejected("ply-missing", PLY_SCENE, &[], &["cloud.ply"]);
+    rejected(
+        "ply-garbage",
+        PLY_SCENE,
+        &[("cloud.ply", b"this is not a ply file\n")],
+        &["cloud.ply"],
+    );
+    let truncated = b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nproperty float y\nproperty float z\nend_header\n\x00\x00";
+    rejected(
+        "ply-truncated",
+        PLY_SCENE,
+        &[("cloud.ply", truncated)],
+        &["cloud.ply"],
+    );
+}
+
+#[test]
+fn zero_normals_in_a_ply_are_rejected() {
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+               property float nx\nproperty float ny\nproperty float nz\nend_header\n\
+               0 0 0 0 0 1\n1 0 0 0 0 0\n0 1 0 0 0 1\n";
+    rejected(
+        "ply-normal",
+        PLY_SCENE,
+        &[("cloud.ply", ply.as_bytes())],
+        &["cloud.ply", "vertex 1", "normal"],
+    );
+}
+
+#[test]
+fn command_line_mistakes_are_explained() {
+    let dir = workdir("args");
+    std::fs::write(dir.join("scene.toml"), SCENE).unwrap();
+    for (args, needle) in [
+        (vec!["render", "scene.toml", "--time", "2"], "--time"),
+        (vec!["render", "scene.toml", "-o", "out.jpg"], ".png"),
+        (vec!["render", "nope.toml"], "nope.toml"),
+        (vec!["render", "scene.toml", "--threads", "0"], "--threads"),
+        (vec!["render", "scene.toml", "-m", "sharp"], "sharp"),
+    ] {
+        let out = streak(&args, &dir);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(
+            stderr.contains(needle),
+            "{args:?}: {needle:?} missing from {stderr}"
+        );
+    }
+}

@@ -1,0 +1,101 @@
+//! Scenes built in code for the tests: one camera, surfels placed exactly where a test needs them.
+
+#![allow(dead_code)]
+
+use glam::{DQuat, DVec3};
+use streak::camera::Camera;
+use streak::geometry::Surfel;
+use streak::motion::{Keyframe, Motion, Pose};
+use streak::scene::{Lighting, Object, Scene};
+use streak::shutter::Shutter;
+use streak::{render, Framebuffer, Method, Plan, Settings};
+
+/// Camera distance; the surfels sit in the plane z = 0, parallel to the image plane, where the
+/// projection is exactly a scale by `focal / DISTANCE`.
+pub const DISTANCE: f64 = 10.0;
+
+pub fn camera(width: u32, height: u32) -> Camera {
+    Camera::look_at(
+        DVec3::new(0.0, 0.0, DISTANCE),
+        DVec3::ZERO,
+        DVec3::Y,
+        30.0,
+        width,
+        height,
+        0.01,
+    )
+}
+
+/// World units → pixels in the plane z = 0.
+pub fn px_per_unit(camera: &Camera) -> f64 {
+    camera.focal_px / DISTANCE
+}
+
+pub fn scene(camera: Camera, objects: Vec<Object>) -> Scene {
+    Scene {
+        source: "test".into(),
+        camera,
+        background: [0.0; 3],
+        shutter: Shutter::default(),
+        lighting: Lighting::default(),
+        objects,
+    }
+}
+
+/// A white surfel at `position` facing the camera, whose Gaussian has standard deviation `sigma`.
+pub fn facing_surfel(position: DVec3, sigma: f64) -> Surfel {
+    let area = (sigma / streak::geometry::SIGMA_PER_SPACING).powi(2);
+    Surfel::isotropic(position, DVec3::Z, area, None, [1.0; 3])
+}
+
+pub fn pose(translation: DVec3, rotation_z_degrees: f64) -> Pose {
+    Pose {
+        translation,
+        rotation: DQuat::from_rotation_z(rotation_z_degrees.to_radians()),
+        scale: 1.0,
+    }
+}
+
+/// A motion through poses at the given times.
+pub fn motion(keys: &[(f64, Pose)]) -> Motion {
+    Motion::new(keys.iter().map(|&(t, pose)| Keyframe { t, pose }).collect())
+}
+
+pub fn object(surfels: Vec<Surfel>, motion: Motion) -> Object {
+    Object {
+        name: "test".into(),
+        surfels,
+        motion,
+    }
+}
+
+pub fn draw(scene: &Scene, method: Method, tolerance_px: f64, samples: usize) -> Framebuffer {
+    let plan = Plan::new(scene, tolerance_px);
+    let settings = Settings {
+        method,
+        time: None,
+        samples,
+    };
+    render(scene, &plan, &settings, None).image
+}
+
+/// Red channel of every pixel.
+pub fn red(image: &Framebuffer) -> Vec<f64> {
+    image.pixels.iter().map(|p| f64::from(p[0])).collect()
+}
+
+/// Σ|a − b| / Σ|b|.
+pub fn relative_l1(a: &[f64], b: &[f64]) -> f64 {
+    let diff: f64 = a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum();
+    diff / b.iter().map(|y| y.abs()).sum::<f64>()
+}
+
+pub fn rmse(a: &Framebuffer, b: &Framebuffer) -> f64 {
+    let sum: f64 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .flat_map(|(p, q)| (0..3).map(move |c| f64::from(p[c] - q[c]).powi(2)))
+        .sum();
+    (sum / (3 * a.pixels.len()) as f64).sqrt()
+}
