@@ -198,6 +198,12 @@ fn run_render(args: RenderArgs) -> Result<()> {
             "rendered {} footprints in {} frame(s) ({} reused) in {seconds:.3} s; largest tile list {}",
             out.stats.footprints, out.stats.frames, out.stats.reused_footprints, out.stats.max_per_tile
         );
+        let surfel_instants = scene.surfel_count() * out.stats.frames;
+        println!(
+            "throughput: {:.3e} surfels/s projected, {:.3e} footprints/s rasterized (plan + render)",
+            surfel_instants as f64 / seconds,
+            out.stats.footprints as f64 / seconds
+        );
     }
     eprintln!(
         "wrote {} ({} {}×{}, {seconds:.3} s)",

@@ -134,20 +134,24 @@ pub enum Cull {
     Raster(Rejection),
 }
 
-/// Collect per-surfel results in order (deterministic), counting what was left out.
-pub fn gather(
-    results: Vec<Result<Footprint, Cull>>,
-    footprints: &mut Vec<Footprint>,
-    culled: &mut Culled,
-) {
-    for r in results {
-        match r {
+impl Culled {
+    /// Keep a footprint or count why there is none.
+    pub fn keep(&mut self, result: Result<Footprint, Cull>, footprints: &mut Vec<Footprint>) {
+        match result {
             Ok(f) => footprints.push(f),
-            Err(Cull::BackFacing) => culled.back_facing += 1,
-            Err(Cull::BehindNear) => culled.behind_near += 1,
-            Err(Cull::Raster(Rejection::OffScreen)) => culled.off_screen += 1,
-            Err(Cull::Raster(Rejection::Degenerate)) => culled.degenerate += 1,
+            Err(Cull::BackFacing) => self.back_facing += 1,
+            Err(Cull::BehindNear) => self.behind_near += 1,
+            Err(Cull::Raster(Rejection::OffScreen)) => self.off_screen += 1,
+            Err(Cull::Raster(Rejection::Degenerate)) => self.degenerate += 1,
         }
+    }
+
+    /// Add another tally to this one.
+    pub fn add(&mut self, other: &Culled) {
+        self.back_facing += other.back_facing;
+        self.off_screen += other.off_screen;
+        self.behind_near += other.behind_near;
+        self.degenerate += other.degenerate;
     }
 }
 
@@ -183,7 +187,9 @@ pub fn object_footprints_at(
             None => Err(Cull::BehindNear),
         })
         .collect();
-    gather(results, footprints, culled);
+    for result in results {
+        culled.keep(result, footprints);
+    }
 }
 
 #[cfg(test)]

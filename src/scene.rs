@@ -481,7 +481,7 @@ mod tests {
     }
 
     fn error_of(text: &str) -> String {
-        parse(text).err().expect("should be rejected").to_string()
+        parse(text).expect_err("should be rejected").to_string()
     }
 
     #[test]

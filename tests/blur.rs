@@ -218,3 +218,38 @@ fn zero_motion_blur_equals_static_equals_reference() {
         .fold(0.0f32, f32::max);
     assert!(worst < 1e-5, "{worst}");
 }
+
+#[test]
+fn ten_thousand_pixels_of_motion_keep_the_share_of_energy_inside_the_image() {
+    // A splat crossing 12,000 px at uniform speed spends width/12,000 of the shutter over the
+    // image, so the image must hold that share of the static splat's energy, with no NaN.
+    let camera = camera(256, 64);
+    let scale = px_per_unit(&camera);
+    let surfel = facing_surfel(DVec3::ZERO, SIGMA_PX / scale);
+    let travel_px = 12_000.0;
+    let half = travel_px / 2.0 / scale;
+    let fast = motion(&[
+        (0.0, pose(DVec3::new(-half, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(half, 0.0, 0.0), 0.0)),
+    ]);
+    let still = scene(
+        camera.clone(),
+        vec![object(
+            vec![surfel],
+            motion(&[(0.0, pose(DVec3::ZERO, 0.0))]),
+        )],
+    );
+    let moving = scene(camera, vec![object(vec![surfel], fast)]);
+    let energy =
+        |image: &streak::Framebuffer| image.pixels.iter().map(|p| f64::from(p[0])).sum::<f64>();
+    let expected = energy(&draw(&still, Method::Static, 1.0, 1)) * 256.0 / travel_px;
+    let blurred = draw(&moving, Method::Blur, 1.0, 1);
+    assert!(blurred.pixels.iter().flatten().all(|c| c.is_finite()));
+    let share = energy(&blurred);
+    // The sub-segment count is capped (256 per keyframe interval), so ellipses are ~47 px long
+    // and the ones straddling the image edges put a little energy outside it: 3 %.
+    assert!(
+        (share / expected - 1.0).abs() < 0.03,
+        "{share} vs {expected}"
+    );
+}
