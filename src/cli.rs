@@ -200,7 +200,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         );
         let surfel_instants = scene.surfel_count() * out.stats.frames;
         println!(
-            "throughput: {:.3e} surfels/s projected, {:.3e} footprints/s rasterized (plan + render)",
+            "throughput: {:.3e} surfels × frames per second, {:.3e} footprints per second (plan + render)",
             surfel_instants as f64 / seconds,
             out.stats.footprints as f64 / seconds
         );
