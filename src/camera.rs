@@ -14,7 +14,9 @@ pub struct Camera {
     pub eye: DVec3,
     /// Focal length in pixels: `(height / 2) / tan(fov_y / 2)`.
     pub focal_px: f64,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Points closer than this (camera-space depth) are not projected.
     pub near: f64,
@@ -23,7 +25,9 @@ pub struct Camera {
 /// The 2×3 Jacobian of the projection at a camera-space point: rows are ∂x_px/∂p and ∂y_px/∂p.
 #[derive(Clone, Copy, Debug)]
 pub struct ProjectionJacobian {
+    /// ∂x_px/∂p.
     pub row_x: DVec3,
+    /// ∂y_px/∂p.
     pub row_y: DVec3,
 }
 

@@ -8,13 +8,18 @@ use std::path::{Path, PathBuf};
 pub enum Error {
     /// A problem in a user's input file: which file, which field (or line), what is wrong.
     Input {
+        /// The file at fault.
         file: PathBuf,
+        /// Where in it: a field path such as `object[1].keyframe[2].t`, or a line.
         field: String,
+        /// What is wrong and what would be right.
         message: String,
     },
     /// A file could not be read or written.
     Io {
+        /// The file that could not be read or written.
         file: PathBuf,
+        /// The operating system's reason.
         source: std::io::Error,
     },
     /// A request that is invalid on its face (a bad command-line value, an impossible size).

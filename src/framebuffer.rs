@@ -3,8 +3,11 @@
 /// A linear-light RGB image, row-major, pixel (0,0) top-left.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Framebuffer {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// `width × height` linear RGB pixels, row by row from the top.
     pub pixels: Vec<[f32; 3]>,
 }
 

@@ -19,9 +19,13 @@ use std::path::{Path, PathBuf};
 /// ~0.5 the ripple grows fast and holes show.
 pub const SIGMA_PER_SPACING: f64 = 0.6;
 
+/// The colour of freshly sampled surfels, before the object's colour is applied.
+const UNCOLOURED: [f32; 3] = [1.0; 3];
+
 /// A surface element in object space.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Surfel {
+    /// Centre in object space.
     pub position: DVec3,
     /// Unit outward normal.
     pub normal: DVec3,
@@ -59,13 +63,7 @@ impl Surfel {
     }
 
     /// A surfel for a parallelogram cell spanned by the tangent steps `step_u` and `step_v`.
-    fn from_cell(
-        position: DVec3,
-        step_u: DVec3,
-        step_v: DVec3,
-        outward: DVec3,
-        colour: [f32; 3],
-    ) -> Option<Self> {
+    fn from_cell(position: DVec3, step_u: DVec3, step_v: DVec3, outward: DVec3) -> Option<Self> {
         let cross = step_u.cross(step_v);
         let area = cross.length();
         let mut normal = cross.try_normalize()?;
@@ -78,7 +76,7 @@ impl Surfel {
             axis_u: step_u * SIGMA_PER_SPACING,
             axis_v: step_v * SIGMA_PER_SPACING,
             area,
-            colour,
+            colour: UNCOLOURED,
         })
     }
 }
@@ -95,27 +93,52 @@ pub const DEFAULT_NEIGHBOURS: usize = 12;
 #[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Shape {
     /// A sphere of `radius`.
-    Sphere { radius: f64 },
+    Sphere {
+        /// Radius.
+        radius: f64,
+    },
     /// A rectangle in the xy plane facing +z, `size = [x, y]`.
-    Quad { size: [f64; 2] },
+    Quad {
+        /// Side lengths along x and y.
+        size: [f64; 2],
+    },
     /// An axis-aligned box, `size = [x, y, z]`.
-    Box { size: [f64; 3] },
+    Box {
+        /// Side lengths along x, y and z.
+        size: [f64; 3],
+    },
     /// A capped cylinder along y (a rod), of `radius` and `length`.
-    Cylinder { radius: f64, length: f64 },
+    Cylinder {
+        /// Radius.
+        radius: f64,
+        /// Length along y.
+        length: f64,
+    },
     /// A torus in the xz plane around y: `major` radius of the ring, `minor` radius of the tube.
-    Torus { major: f64, minor: f64 },
+    Torus {
+        /// Radius of the ring.
+        major: f64,
+        /// Radius of the tube.
+        minor: f64,
+    },
     /// A (p, q) torus knot of tube radius `tube`; `scale` sets its overall size (the core curve
     /// reaches about 3·scale from the centre).
     TorusKnot {
+        /// Turns around the torus's axis.
         p: u32,
+        /// Turns through the torus's hole.
         q: u32,
+        /// Overall size.
         scale: f64,
+        /// Tube radius.
         tube: f64,
     },
     /// A PLY point cloud (ascii or binary, optionally gzipped); normals, radii and areas missing
     /// from the file are estimated from `neighbours` nearest neighbours.
     Ply {
+        /// The file, relative to the scene file.
         path: PathBuf,
+        /// Neighbours used for estimation (default [`DEFAULT_NEIGHBOURS`]).
         neighbours: Option<usize>,
     },
 }
@@ -286,19 +309,17 @@ fn surfels_from_cloud(
         .collect())
 }
 
-/// Sample a procedural `shape` into surfels about `spacing` apart (uncoloured: white).
+/// Sample a procedural `shape` into surfels about `spacing` apart (white; the caller colours them).
 fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
-    let colour = [1.0; 3];
     let mut out = Vec::new();
     match *shape {
         Shape::Ply { .. } => {}
-        Shape::Sphere { radius } => sample_sphere(radius, spacing, colour, &mut out),
+        Shape::Sphere { radius } => sample_sphere(radius, spacing, &mut out),
         Shape::Quad { size } => sample_quad(
             DVec3::ZERO,
             DVec3::X * size[0],
             DVec3::Y * size[1],
             spacing,
-            colour,
             &mut out,
         ),
         Shape::Box { size } => {
@@ -311,7 +332,7 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
                 for sign in [-1.0, 1.0] {
                     let mut centre = DVec3::ZERO;
                     centre[axis] = sign * h[axis];
-                    sample_quad(centre, span_a, span_b, spacing, colour, &mut out);
+                    sample_quad(centre, span_a, span_b, spacing, &mut out);
                 }
             }
             // The loop above orients each face by its cross product; make them all point out.
@@ -327,20 +348,13 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
                 let phi = u * std::f64::consts::TAU;
                 DVec3::new(radius * phi.cos(), (v - 0.5) * length, -radius * phi.sin())
             };
-            sample_parametric(
-                side,
-                spacing,
-                |p| DVec3::new(p.x, 0.0, p.z),
-                colour,
-                &mut out,
-            );
+            sample_parametric(side, spacing, |p| DVec3::new(p.x, 0.0, p.z), &mut out);
             for sign in [-1.0, 1.0] {
                 sample_disc(
                     DVec3::Y * (0.5 * sign * length),
                     DVec3::Y * sign,
                     radius,
                     spacing,
-                    colour,
                     &mut out,
                 );
             }
@@ -357,7 +371,7 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
                 core + minor * (theta.cos() * radial + theta.sin() * DVec3::Y)
             };
             let outward = move |p: DVec3| p - DVec3::new(p.x, 0.0, p.z).normalize() * major;
-            sample_parametric(surface, spacing, outward, colour, &mut out);
+            sample_parametric(surface, spacing, outward, &mut out);
         }
         Shape::TorusKnot { p, q, scale, tube } => {
             let (p, q) = (f64::from(p), f64::from(q));
@@ -384,14 +398,14 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
             // Outward is away from the nearest point of the core curve; the tube is thin enough
             // that the curve point at the same parameter is that point.
             let outward_at = move |u: f64, v: f64| surface(u, v) - frame(u).0;
-            sample_parametric_with(surface, spacing, outward_at, colour, &mut out);
+            sample_parametric_with(surface, spacing, outward_at, &mut out);
         }
     }
     out
 }
 
 /// Fibonacci-spiral samples: near-uniform density with exactly equal areas.
-fn sample_sphere(radius: f64, spacing: f64, colour: [f32; 3], out: &mut Vec<Surfel>) {
+fn sample_sphere(radius: f64, spacing: f64, out: &mut Vec<Surfel>) {
     let total_area = 4.0 * std::f64::consts::PI * radius * radius;
     let count = cell_count(total_area / (spacing * spacing));
     let area = total_area / count as f64;
@@ -406,20 +420,13 @@ fn sample_sphere(radius: f64, spacing: f64, colour: [f32; 3], out: &mut Vec<Surf
             normal,
             area,
             None,
-            colour,
+            UNCOLOURED,
         ));
     }
 }
 
 /// A parallelogram centred at `centre` spanned by `span_a`, `span_b`, normal along their cross product.
-fn sample_quad(
-    centre: DVec3,
-    span_a: DVec3,
-    span_b: DVec3,
-    spacing: f64,
-    colour: [f32; 3],
-    out: &mut Vec<Surfel>,
-) {
+fn sample_quad(centre: DVec3, span_a: DVec3, span_b: DVec3, spacing: f64, out: &mut Vec<Surfel>) {
     let (na, nb) = (
         cell_count(span_a.length() / spacing),
         cell_count(span_b.length() / spacing),
@@ -430,20 +437,13 @@ fn sample_quad(
     for j in 0..nb {
         for i in 0..na {
             let p = corner + step_a * (i as f64 + 0.5) + step_b * (j as f64 + 0.5);
-            out.extend(Surfel::from_cell(p, step_a, step_b, outward, colour));
+            out.extend(Surfel::from_cell(p, step_a, step_b, outward));
         }
     }
 }
 
 /// A disc of `radius` at `centre` facing `normal`, in concentric rings of near-square cells.
-fn sample_disc(
-    centre: DVec3,
-    normal: DVec3,
-    radius: f64,
-    spacing: f64,
-    colour: [f32; 3],
-    out: &mut Vec<Surfel>,
-) {
+fn sample_disc(centre: DVec3, normal: DVec3, radius: f64, spacing: f64, out: &mut Vec<Surfel>) {
     let (e1, e2) = normal.any_orthonormal_pair();
     let rings = cell_count(radius / spacing);
     let dr = radius / rings as f64;
@@ -461,7 +461,6 @@ fn sample_disc(
                 radial * dr,
                 around * (r * dphi),
                 normal,
-                colour,
             ));
         }
     }
@@ -472,16 +471,9 @@ fn sample_parametric(
     surface: impl Fn(f64, f64) -> DVec3,
     spacing: f64,
     outward: impl Fn(DVec3) -> DVec3,
-    colour: [f32; 3],
     out: &mut Vec<Surfel>,
 ) {
-    sample_parametric_with(
-        &surface,
-        spacing,
-        |u, v| outward(surface(u, v)),
-        colour,
-        out,
-    );
+    sample_parametric_with(&surface, spacing, |u, v| outward(surface(u, v)), out);
 }
 
 /// Sample a surface f(u, v) over [0,1]² on a grid whose counts follow the mean lengths of the
@@ -490,7 +482,6 @@ fn sample_parametric_with(
     surface: impl Fn(f64, f64) -> DVec3,
     spacing: f64,
     outward: impl Fn(f64, f64) -> DVec3,
-    colour: [f32; 3],
     out: &mut Vec<Surfel>,
 ) {
     let mean_length = |along_u: bool| {
@@ -525,7 +516,6 @@ fn sample_parametric_with(
                 step_u,
                 step_v,
                 outward(u, v),
-                colour,
             ));
         }
     }

@@ -7,9 +7,37 @@
 //! screen-space footprints that the shared [`raster`]izer composites; the [`render`]ers differ
 //! only in the footprints they make. [`metrics`] and [`study`] measure error against run time,
 //! [`plot`] draws it, [`output`] writes images.
+//!
+//! ```
+//! use streak::{render, Method, Plan, Scene, Settings};
+//! let text = r#"
+//!     background = [0, 0, 0]
+//!     [camera]
+//!     eye = [0, 0, 4]
+//!     target = [0, 0, 0]
+//!     fov_y = 40
+//!     width = 64
+//!     height = 48
+//!     [[object]]
+//!     shape = { type = "sphere", radius = 0.5 }
+//!     spacing = 0.02
+//!     [[object.keyframe]]
+//!     t = 0
+//!     [[object.keyframe]]
+//!     t = 1
+//!     translate = [1, 0, 0]
+//! "#;
+//! let scene = Scene::parse(text, "ball.toml".as_ref())?;
+//! let plan = Plan::new(&scene, 1.0);
+//! let settings = Settings { method: Method::Blur, ..Settings::default() };
+//! let image = render(&scene, &plan, &settings, None).image;
+//! assert_eq!(image.pixels.len(), 64 * 48);
+//! # Ok::<(), streak::Error>(())
+//! ```
 
 // Guards are written `if !(x > lo)` on purpose, so that a NaN fails them and is rejected.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+#![warn(missing_docs)]
 
 pub mod camera;
 pub mod error;

@@ -10,8 +10,11 @@ use glam::{DAffine3, DMat3, DQuat, DVec3};
 /// An object's pose at one instant: world = translation + rotation · (scale · object).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Pose {
+    /// World position of the object's origin.
     pub translation: DVec3,
+    /// Orientation.
     pub rotation: DQuat,
+    /// Uniform scale.
     pub scale: f64,
 }
 
@@ -43,7 +46,9 @@ impl Pose {
 /// A pose at a normalized frame time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Keyframe {
+    /// Normalized frame time.
     pub t: f64,
+    /// The pose at `t`.
     pub pose: Pose,
 }
 

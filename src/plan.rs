@@ -33,6 +33,7 @@ pub enum ObjectMotion {
     Still,
     /// Moves: linear sub-segments [t0, t1] covering the shutter interval.
     Moving {
+        /// Sub-segments [t0, t1] in time order.
         segments: Vec<[f64; 2]>,
         /// Longest screen path of a probed point, px.
         path_px: f64,
@@ -48,15 +49,20 @@ pub enum ObjectMotion {
 /// The plan for one object.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjectPlan {
+    /// The object's name.
     pub name: String,
+    /// Its surfel count.
     pub surfels: usize,
+    /// How it will be drawn.
     pub motion: ObjectMotion,
 }
 
 /// The plan for a scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
+    /// One entry per scene object, in scene order.
     pub objects: Vec<ObjectPlan>,
+    /// Chord-deviation tolerance of the sub-segments, px.
     pub tolerance_px: f64,
     /// Whether any light shades the surfels.
     pub lit: bool,
@@ -132,9 +138,11 @@ impl Plan {
                 }
             }
         }
-        if !self.lit {
-            line("  lighting: none, so no shading pass (colours drawn as given)".to_string());
-        }
+        line(if self.lit {
+            "  lighting: Lambertian shading of every surfel at every instant it is seen".to_string()
+        } else {
+            "  lighting: none, so no shading pass (colours drawn as given)".to_string()
+        });
         if let Some(c) = culled {
             line("left out while rendering (per surfel and instant or sub-segment):".to_string());
             line(format!("  back-facing: {}", c.back_facing));

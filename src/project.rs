@@ -45,7 +45,9 @@ impl Instant {
 /// equal to the screen area it covers) and whether it faces the camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfelView {
+    /// The splat on screen.
     pub splat: ScreenSplat,
+    /// Whether its front side faces the camera.
     pub front_facing: bool,
 }
 
@@ -129,8 +131,11 @@ pub struct Culled {
 /// Why one surfel (or one of its segments) made no footprint.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Cull {
+    /// Facing away from the camera.
     BackFacing,
+    /// Centre not in front of the near plane.
     BehindNear,
+    /// Refused by the rasterizer.
     Raster(Rejection),
 }
 

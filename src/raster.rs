@@ -43,8 +43,11 @@ const OPAQUE_TRANSMITTANCE: f32 = 1e-4;
 /// A symmetric 2×2 matrix (a covariance or its inverse, the conic).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Sym2 {
+    /// Row 0, column 0.
     pub xx: f64,
+    /// The off-diagonal entry.
     pub xy: f64,
+    /// Row 1, column 1.
     pub yy: f64,
 }
 
@@ -75,11 +78,13 @@ impl Sym2 {
         self.xx * v.x * v.x + 2.0 * self.xy * v.x * v.y + self.yy * v.y * v.y
     }
 
+    /// The determinant.
     #[must_use]
     pub fn det(&self) -> f64 {
         self.xx * self.yy - self.xy * self.xy
     }
 
+    /// Every entry times `k`.
     #[must_use]
     pub fn scaled(&self, k: f64) -> Self {
         Sym2 {

@@ -125,14 +125,18 @@ struct RotationSpec {
 /// A directional light: `direction` points from the scene towards the light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
+    /// Unit vector towards the light.
     pub direction: DVec3,
+    /// Irradiance scale.
     pub intensity: f64,
 }
 
 /// Lambertian lighting; with no lights the scene is drawn unlit (colours as given).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Lighting {
+    /// Irradiance added everywhere.
     pub ambient: f64,
+    /// Directional lights.
     pub lights: Vec<Light>,
 }
 
@@ -162,8 +166,11 @@ impl Lighting {
 /// One object: its surfels in object space and its motion.
 #[derive(Clone, Debug)]
 pub struct Object {
+    /// Name from the scene (or `object N`).
     pub name: String,
+    /// Surfels in object space.
     pub surfels: Vec<Surfel>,
+    /// Keyframed pose over the frame.
     pub motion: Motion,
 }
 
@@ -172,11 +179,15 @@ pub struct Object {
 pub struct Scene {
     /// The file it came from (for messages).
     pub source: PathBuf,
+    /// The camera and image size.
     pub camera: Camera,
     /// Linear RGB.
     pub background: [f32; 3],
+    /// When the shutter is open and how it weights time.
     pub shutter: Shutter,
+    /// Lights (none: unlit).
     pub lighting: Lighting,
+    /// The objects, in file order.
     pub objects: Vec<Object>,
 }
 

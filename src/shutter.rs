@@ -23,8 +23,11 @@ pub enum ShutterShape {
 /// An open interval of the frame and its weighting.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shutter {
+    /// Opening time in [0, 1].
     pub open: f64,
+    /// Closing time in [0, 1], after `open`.
     pub close: f64,
+    /// Weighting over the open interval.
     pub shape: ShutterShape,
 }
 
@@ -134,6 +137,13 @@ impl Shutter {
     }
 
     /// Mass, mean and variance of time over [t0, t1] (clipped to the open interval).
+    ///
+    /// ```
+    /// use streak::shutter::Shutter;
+    /// // A box shutter: the whole exposure is uniform on [0, 1], variance 1/12.
+    /// let m = Shutter::default().moments(0.0, 1.0);
+    /// assert!((m.mass - 1.0).abs() < 1e-12 && (m.variance - 1.0 / 12.0).abs() < 1e-12);
+    /// ```
     #[must_use]
     pub fn moments(&self, t0: f64, t1: f64) -> TimeMoments {
         let total = self.raw_moments(self.open, self.close)[0];

@@ -111,7 +111,8 @@ pub fn converged_reference(
 }
 
 /// Run the study: render every method across its knob, time it, measure it against the converged
-/// reference, and write each image as PNG into `options.out_dir`.
+/// reference, and write each image as PNG into `options.out_dir`. `progress` counts reference
+/// frames first, then the settings studied.
 pub fn run(
     scene: &Scene,
     options: &StudyOptions,
@@ -158,8 +159,19 @@ pub fn run(
         n *= 2;
     }
 
+    if let Some(bar) = progress {
+        bar.set_length(setups.len() as u64);
+        bar.set_position(0);
+    }
     let mut points = Vec::with_capacity(setups.len());
     for setting in &setups {
+        if let Some(bar) = progress {
+            bar.set_message(format!(
+                "{} {}",
+                setting.settings.method.name(),
+                setting.knob()
+            ));
+        }
         let (first, first_time) = timed(scene, setting);
         let mut times = vec![first_time];
         times.extend((1..options.repeats.max(1)).map(|_| timed(scene, setting).1));
@@ -174,11 +186,7 @@ pub fn run(
             error: compare(&first.image, &reference)?,
         });
         if let Some(bar) = progress {
-            bar.set_message(format!(
-                "{} {}",
-                setting.settings.method.name(),
-                setting.knob()
-            ));
+            bar.inc(1);
         }
     }
     Ok(points)

@@ -44,6 +44,7 @@ impl Method {
 /// What to render and at which quality.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
+    /// The renderer.
     pub method: Method,
     /// Instant drawn by `static` (default: the middle of the exposure).
     pub time: Option<f64>,
@@ -87,7 +88,9 @@ impl Stats {
 /// An image and how it was made.
 #[derive(Clone, Debug)]
 pub struct Render {
+    /// Linear RGB.
     pub image: Framebuffer,
+    /// What was drawn and left out.
     pub stats: Stats,
 }
 
