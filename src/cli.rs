@@ -278,6 +278,11 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
             args.scenes.display()
         )));
     }
+    if args.samples == 0 {
+        return Err(Error::Usage("--samples must be at least 1".into()));
+    }
+    const METHODS: [Method; 3] = [Method::Static, Method::Blur, Method::Reference];
+    let progress = bar((scenes.len() * METHODS.len()) as u64, "gallery");
     for path in &scenes {
         let scene = load(path, &args.image)?;
         let plan = Plan::new(&scene, DEFAULT_TOLERANCE_PX);
@@ -286,7 +291,8 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
             .unwrap_or_default()
             .to_string_lossy()
             .to_string();
-        for method in [Method::Static, Method::Blur, Method::Reference] {
+        for method in METHODS {
+            progress.set_message(format!("{stem} {}", method.name()));
             let settings = Settings {
                 method,
                 time: None,
@@ -296,12 +302,11 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
             let out = render(&scene, &plan, &settings, None);
             let file = args.output.join(format!("{stem}-{}.png", method.name()));
             output::write_png(&out.image, &file)?;
-            eprintln!(
-                "wrote {} ({:.3} s)",
-                file.display(),
-                start.elapsed().as_secs_f64()
-            );
+            let seconds = start.elapsed().as_secs_f64();
+            progress.suspend(|| eprintln!("wrote {} ({seconds:.3} s)", file.display()));
+            progress.inc(1);
         }
     }
+    progress.finish_and_clear();
     Ok(())
 }

@@ -11,7 +11,7 @@ use crate::camera::Camera;
 use crate::geometry::Surfel;
 use crate::motion::Pose;
 use crate::raster::{
-    Footprint, Rejection, ScreenSplat, Sym2, CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2,
+    Footprint, Rejection, ScreenSplat, Sym2, TimeExtent, CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2,
 };
 use crate::scene::{Lighting, Object};
 use glam::{DAffine3, DMat3, DVec2, DVec3};
@@ -86,6 +86,7 @@ pub fn view_surfel(
             depth,
             depth_gradient,
             depth_tolerance,
+            time: TimeExtent::WHOLE_FRAME,
         },
         front_facing: normal_view.dot(p_view) < 0.0,
     })

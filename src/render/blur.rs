@@ -23,10 +23,16 @@
 use super::{draw, Render, Stats};
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{object_footprints_at, view_surfel, Cull, Culled, Instant, SurfelView};
-use crate::raster::{Footprint, ScreenSplat, Sym2, PREFILTER_VARIANCE_PX2};
+use crate::raster::{Footprint, ScreenSplat, Sym2, TimeBins, TimeExtent, PREFILTER_VARIANCE_PX2};
 use crate::scene::Scene;
 use glam::DVec2;
 use rayon::prelude::*;
+
+/// Bins of shutter time in which coverage is composited (see [`crate::raster::TimeBins`]). A bin
+/// is a sixteenth of the exposure: a surface that covers a pixel for part of a bin is smeared over
+/// the whole bin, which is finer than the ≈ 1/8 exposure steps the tolerance-driven sub-segments
+/// of a typical path take.
+const TIME_BINS: usize = 16;
 
 pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
     let mut stats = Stats::default();
@@ -77,7 +83,18 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             stats.culled.add(&culled);
         }
     }
-    let image = draw(scene, &footprints, &mut stats);
+    // Coverage is composited per bin of shutter time only when something moves; a still scene is
+    // an instant.
+    let image = if plan.any_moving() {
+        draw(
+            scene,
+            &footprints,
+            &TimeBins::<TIME_BINS>::over(&scene.shutter),
+            &mut stats,
+        )
+    } else {
+        draw(scene, &footprints, &TimeBins::INSTANT, &mut stats)
+    };
     Render { image, stats }
 }
 
@@ -117,13 +134,30 @@ fn motion_ellipse(
         xy: lerp(a.covariance.xy, b.covariance.xy),
         yy: lerp(a.covariance.yy, b.covariance.yy),
     } + Sym2::isotropic(PREFILTER_VARIANCE_PX2);
-    let mut motion_variance = moments.variance / ((t1 - t0) * (t1 - t0));
+    let duration = t1 - t0;
+    let mut motion_variance = moments.variance / (duration * duration);
     let chord_sq = chord.length_squared();
-    if chained && chord_sq > 0.0 {
-        // Spread of the splat along the chord, in chord lengths squared.
-        let along = splat.quadratic(chord) / (chord_sq * chord_sq);
+    // Variance of the splat along the chord, in chord lengths squared (∞ without motion).
+    let along = if chord_sq > 0.0 {
+        splat.quadratic(chord) / (chord_sq * chord_sq)
+    } else {
+        f64::INFINITY
+    };
+    if chained && along.is_finite() {
         motion_variance = motion_variance.max(0.25 - along);
     }
+    // A pixel on the chord is covered while the splat passes: about √3 standard deviations of
+    // the splat either side of its passing time (a box of the same variance).
+    let time = TimeExtent {
+        center: moments.mean,
+        gradient: if chord_sq > 0.0 {
+            chord * (duration / chord_sq)
+        } else {
+            DVec2::ZERO
+        },
+        half_width: (3.0 * along).sqrt().min(1.0) * duration,
+        span: [t0, t1],
+    };
     let ellipse = ScreenSplat {
         center: a.center + chord * s,
         covariance: splat + Sym2::outer(chord).scaled(motion_variance),
@@ -137,6 +171,7 @@ fn motion_ellipse(
             splat,
         ),
         depth_tolerance: a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs(),
+        time,
     };
     ellipse
         .footprint(scene.camera.width, scene.camera.height)

@@ -12,7 +12,7 @@ mod reference;
 use crate::framebuffer::Framebuffer;
 use crate::plan::Plan;
 use crate::project::{object_footprints_at, Culled};
-use crate::raster::{rasterize, Footprint, RasterStats};
+use crate::raster::{rasterize, Footprint, RasterStats, TimeBins};
 use crate::scene::Scene;
 use indicatif::ProgressBar;
 use serde::Deserialize;
@@ -127,17 +127,24 @@ pub fn render_static(scene: &Scene, t: f64) -> Render {
             &mut stats.culled,
         );
     }
-    let image = draw(scene, &footprints, &mut stats);
+    let image = draw(scene, &footprints, &TimeBins::INSTANT, &mut stats);
     Render { image, stats }
 }
 
-/// Rasterize footprints with the scene's size and background, counting into `stats`.
-fn draw(scene: &Scene, footprints: &[Footprint], stats: &mut Stats) -> Framebuffer {
+/// Rasterize footprints with the scene's size and background in time bins `bins`, counting into
+/// `stats`.
+fn draw<const B: usize>(
+    scene: &Scene,
+    footprints: &[Footprint],
+    bins: &TimeBins<B>,
+    stats: &mut Stats,
+) -> Framebuffer {
     let (image, raster) = rasterize(
         footprints,
         scene.camera.width,
         scene.camera.height,
         scene.background,
+        bins,
     );
     stats.add_raster(&raster);
     image

@@ -8,6 +8,7 @@ use super::{draw, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::object_footprints_at;
+use crate::raster::TimeBins;
 use crate::scene::Scene;
 use indicatif::ProgressBar;
 
@@ -46,7 +47,7 @@ pub(super) fn render(
                 &mut stats.culled,
             );
         }
-        let frame = draw(scene, &footprints, &mut stats);
+        let frame = draw(scene, &footprints, &TimeBins::INSTANT, &mut stats);
         for (acc, p) in sum.iter_mut().zip(&frame.pixels) {
             for c in 0..3 {
                 acc[c] += mass * f64::from(p[c]);

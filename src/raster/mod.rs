@@ -13,7 +13,12 @@
 //! motion ellipses, Σw is the fraction of the shutter time the surface covers the pixel, so the
 //! background is blended by uncovered time, as Guan & Mueller §3.3 and Heinzle §5.4 ask.
 
+mod composite;
+
+pub use composite::TimeBins;
+
 use crate::framebuffer::Framebuffer;
+use composite::PixelState;
 use glam::DVec2;
 use rayon::prelude::*;
 
@@ -36,9 +41,6 @@ const CUTOFF_Q: f32 = (CUTOFF_SIGMAS * CUTOFF_SIGMAS) as f32;
 
 /// Tile side in pixels.
 pub const TILE_PX: u32 = 16;
-
-/// Once a pixel's transmittance falls below this, farther surfaces cannot change its 8-bit value.
-const OPAQUE_TRANSMITTANCE: f32 = 1e-4;
 
 /// A symmetric 2×2 matrix (a covariance or its inverse, the conic).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -140,8 +142,43 @@ pub struct Footprint {
     pub depth_gradient: [f32; 2],
     /// Depth distance within which another footprint counts as the same surface.
     pub depth_tolerance: f32,
+    /// When it covers which pixel: see [`TimeExtent`].
+    pub time_center: f32,
+    /// Screen gradient of the covering time, per px.
+    pub time_gradient: [f32; 2],
+    /// Half the time it takes to pass over one pixel.
+    pub time_half_width: f32,
+    /// The time interval the footprint stands for.
+    pub time_span: [f32; 2],
     /// Pixel bounds [x0, y0, x1, y1), clipped to the image.
     pub bounds: [u32; 4],
+}
+
+/// When a footprint covers a pixel. A motion ellipse stands for a splat sliding along a chord
+/// during its sub-segment: a pixel is covered around the time the splat's centre passes its
+/// projection on the chord (a linear function of the pixel, clamped to the sub-segment), for as
+/// long as the splat takes to pass. A footprint of an instant or of a still object covers the
+/// pixel for its whole span.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeExtent {
+    /// Covering time at the footprint's centre.
+    pub center: f64,
+    /// Screen gradient of the covering time, per px.
+    pub gradient: DVec2,
+    /// Half the covering duration.
+    pub half_width: f64,
+    /// The interval the footprint stands for.
+    pub span: [f64; 2],
+}
+
+impl TimeExtent {
+    /// Covers every pixel it touches for the whole frame.
+    pub const WHOLE_FRAME: TimeExtent = TimeExtent {
+        center: 0.5,
+        gradient: DVec2::ZERO,
+        half_width: 1.0,
+        span: [0.0, 1.0],
+    };
 }
 
 /// Why a footprint was not made.
@@ -171,6 +208,8 @@ pub struct ScreenSplat {
     pub depth_gradient: DVec2,
     /// Depth distance within which another splat counts as the same surface.
     pub depth_tolerance: f64,
+    /// When it covers which pixel.
+    pub time: TimeExtent,
 }
 
 impl ScreenSplat {
@@ -184,7 +223,8 @@ impl ScreenSplat {
             && amplitude.is_finite()
             && self.center.is_finite()
             && self.depth.is_finite()
-            && self.depth_gradient.is_finite())
+            && self.depth_gradient.is_finite()
+            && self.time.gradient.is_finite())
         {
             return Err(Rejection::Degenerate);
         }
@@ -206,6 +246,10 @@ impl ScreenSplat {
             depth: self.depth as f32,
             depth_gradient: self.depth_gradient.as_vec2().to_array(),
             depth_tolerance: self.depth_tolerance as f32,
+            time_center: self.time.center as f32,
+            time_gradient: self.time.gradient.as_vec2().to_array(),
+            time_half_width: self.time.half_width as f32,
+            time_span: self.time.span.map(|t| t as f32),
             bounds: [x0, y0, x1, y1],
         })
     }
@@ -224,6 +268,21 @@ impl Footprint {
         } else {
             self.amplitude * (-0.5 * q).exp()
         }
+    }
+
+    /// The time interval during which the footprint covers pixel (x, y).
+    #[inline]
+    #[must_use]
+    pub fn time_window_at(&self, x: u32, y: u32) -> [f32; 2] {
+        let dx = x as f32 + 0.5 - self.center[0];
+        let dy = y as f32 + 0.5 - self.center[1];
+        let [lo, hi] = self.time_span;
+        let t = (self.time_center + self.time_gradient[0] * dx + self.time_gradient[1] * dy)
+            .clamp(lo, hi);
+        [
+            (t - self.time_half_width).max(lo),
+            (t + self.time_half_width).min(hi),
+        ]
     }
 
     /// Depth of the splat plane at the centre of pixel (x, y).
@@ -270,71 +329,15 @@ pub struct RasterStats {
     pub max_per_tile: usize,
 }
 
-/// Front-to-back compositing state of one pixel.
-#[derive(Clone, Copy)]
-struct PixelState {
-    colour: [f32; 3],
-    transmittance: f32,
-    group_colour: [f32; 3],
-    group_weight: f32,
-    group_depth: f32,
-    group_tolerance: f32,
-}
-
-impl PixelState {
-    const EMPTY: PixelState = PixelState {
-        colour: [0.0; 3],
-        transmittance: 1.0,
-        group_colour: [0.0; 3],
-        group_weight: 0.0,
-        group_depth: f32::NEG_INFINITY,
-        group_tolerance: 0.0,
-    };
-
-    fn add(&mut self, f: &Footprint, w: f32, depth: f32) {
-        let same_surface = depth - self.group_depth <= self.group_tolerance.max(f.depth_tolerance);
-        if !same_surface {
-            self.close_group();
-            self.group_depth = depth;
-            self.group_tolerance = f.depth_tolerance;
-        }
-        for c in 0..3 {
-            self.group_colour[c] += w * f.colour[c];
-        }
-        self.group_weight += w;
-    }
-
-    fn close_group(&mut self) {
-        if self.group_weight > 0.0 {
-            let alpha = self.group_weight.min(1.0);
-            let k = self.transmittance * alpha / self.group_weight;
-            for c in 0..3 {
-                self.colour[c] += k * self.group_colour[c];
-            }
-            self.transmittance *= 1.0 - alpha;
-        }
-        self.group_colour = [0.0; 3];
-        self.group_weight = 0.0;
-    }
-
-    fn finish(mut self, background: [f32; 3]) -> [f32; 3] {
-        self.close_group();
-        let t = self.transmittance;
-        [
-            self.colour[0] + t * background[0],
-            self.colour[1] + t * background[1],
-            self.colour[2] + t * background[2],
-        ]
-    }
-}
-
-/// Rasterize `footprints` over `background` into a `width`×`height` image.
+/// Rasterize `footprints` over `background` into a `width`×`height` image, compositing coverage
+/// in the time bins `bins` (one bin for an instant).
 #[must_use]
-pub fn rasterize(
+pub fn rasterize<const B: usize>(
     footprints: &[Footprint],
     width: u32,
     height: u32,
     background: [f32; 3],
+    bins: &TimeBins<B>,
 ) -> (Framebuffer, RasterStats) {
     let tiles_x = width.div_ceil(TILE_PX) as usize;
     let tiles_y = height.div_ceil(TILE_PX) as usize;
@@ -390,11 +393,10 @@ pub fn rasterize(
             render_tile(
                 footprints,
                 list,
-                tx * TILE_PX,
-                ty * TILE_PX,
-                width,
-                height,
+                [tx * TILE_PX, ty * TILE_PX],
+                [width, height],
                 background,
+                bins,
             )
         })
         .collect();
@@ -420,19 +422,18 @@ pub fn rasterize(
 }
 
 /// Composite one tile's depth-sorted footprints; returns the tile's pixels row by row.
-fn render_tile(
+fn render_tile<const B: usize>(
     footprints: &[Footprint],
     list: &[u32],
-    x0: u32,
-    y0: u32,
-    width: u32,
-    height: u32,
+    [x0, y0]: [u32; 2],
+    [width, height]: [u32; 2],
     background: [f32; 3],
+    bins: &TimeBins<B>,
 ) -> Vec<[f32; 3]> {
     let x1 = (x0 + TILE_PX).min(width);
     let y1 = (y0 + TILE_PX).min(height);
     let w = (x1 - x0) as usize;
-    let mut pixels = vec![PixelState::EMPTY; w * (y1 - y0) as usize];
+    let mut pixels = vec![PixelState::<B>::EMPTY; w * (y1 - y0) as usize];
     for &index in list {
         let f = &footprints[index as usize];
         let [_, fy0, _, fy1] = f.bounds;
@@ -441,17 +442,20 @@ fn render_tile(
             let (sx0, sx1) = f.row_span(y);
             for x in sx0.max(x0)..sx1.min(x1) {
                 let state = &mut pixels[row + (x - x0) as usize];
-                if state.transmittance < OPAQUE_TRANSMITTANCE {
+                if state.is_opaque() {
                     continue;
                 }
                 let weight = f.weight_at(x, y);
                 if weight > 0.0 {
-                    state.add(f, weight, f.depth_at(x, y));
+                    state.add(f, weight, f.depth_at(x, y), f.time_window_at(x, y), bins);
                 }
             }
         }
     }
-    pixels.into_iter().map(|p| p.finish(background)).collect()
+    pixels
+        .into_iter()
+        .map(|p| p.finish(background, bins))
+        .collect()
 }
 
 #[cfg(test)]
@@ -473,6 +477,7 @@ mod tests {
             depth,
             depth_gradient: DVec2::ZERO,
             depth_tolerance: 0.01,
+            time: TimeExtent::WHOLE_FRAME,
         }
     }
 
@@ -532,7 +537,7 @@ mod tests {
         let red = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [1.0, 0.0, 0.0], 1.0);
         let blue = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [0.0, 0.0, 1.0], 2.0);
         for list in [vec![red, blue], vec![blue, red]] {
-            let (image, _) = rasterize(&list, 64, 64, [0.0; 3]);
+            let (image, _) = rasterize(&list, 64, 64, [0.0; 3], &TimeBins::INSTANT);
             let p = image.pixels[32 * 64 + 32];
             assert!(p[0] > 0.999 && p[2] < 1e-3, "{p:?}");
         }
@@ -544,7 +549,7 @@ mod tests {
         let mut b = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [0.0, 0.0, 1.0], 1.005);
         a.depth_tolerance = 0.01;
         b.depth_tolerance = 0.01;
-        let (image, _) = rasterize(&[a, b], 64, 64, [0.0; 3]);
+        let (image, _) = rasterize(&[a, b], 64, 64, [0.0; 3], &TimeBins::INSTANT);
         let p = image.pixels[32 * 64 + 32];
         assert!(
             (p[0] - 0.5).abs() < 1e-5 && (p[2] - 0.5).abs() < 1e-5,
@@ -562,7 +567,7 @@ mod tests {
             [1.0, 0.0, 0.0],
             1.0,
         );
-        let (image, _) = rasterize(&[f], 64, 64, [0.0, 0.0, 1.0]);
+        let (image, _) = rasterize(&[f], 64, 64, [0.0, 0.0, 1.0], &TimeBins::INSTANT);
         let p = image.pixels[0];
         assert!(
             (p[0] - 0.25).abs() < 1e-3 && (p[2] - 0.75).abs() < 1e-3,
@@ -607,7 +612,13 @@ mod tests {
             [1.0; 3],
             1.0,
         );
-        let (image, _) = rasterize(&[f.footprint(37, 21).unwrap()], 37, 21, [0.0; 3]);
+        let (image, _) = rasterize(
+            &[f.footprint(37, 21).unwrap()],
+            37,
+            21,
+            [0.0; 3],
+            &TimeBins::INSTANT,
+        );
         assert_eq!(image.pixels.len(), 37 * 21);
         assert!(image.pixels[20 * 37 + 36][0] > 0.5);
     }
