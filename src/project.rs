@@ -47,8 +47,8 @@ impl Instant {
 pub struct SurfelView {
     /// The splat on screen.
     pub splat: ScreenSplat,
-    /// Whether its front side faces the camera.
-    pub front_facing: bool,
+    /// Cosine between its normal and the direction to the camera: positive when it faces it.
+    pub facing: f64,
 }
 
 /// View of `surfel` at `instant`, or `None` when its centre is not in front of the near plane.
@@ -88,7 +88,7 @@ pub fn view_surfel(
             depth_tolerance,
             time: TimeExtent::WHOLE_FRAME,
         },
-        front_facing: normal_view.dot(p_view) < 0.0,
+        facing: -normal_view.dot(p_view) / (normal_view.length() * p_view.length()),
     })
 }
 
@@ -163,7 +163,7 @@ impl Culled {
 
 /// The footprint of a surfel view drawn sharp (the static EWA splat).
 pub fn static_footprint(camera: &Camera, view: &SurfelView) -> Result<Footprint, Cull> {
-    if !view.front_facing {
+    if !(view.facing > 0.0) {
         return Err(Cull::BackFacing);
     }
     let splat = ScreenSplat {
@@ -225,7 +225,7 @@ mod tests {
         let view = view_surfel(&cam, &instant, &Lighting::default(), &surfel(DVec3::Z)).unwrap();
         let scale = cam.focal_px / 5.0;
         assert!((view.splat.weight - 0.01 * scale * scale).abs() < 1e-9 * view.splat.weight);
-        assert!(view.front_facing);
+        assert!((view.facing - 1.0).abs() < 1e-12);
         assert!((view.splat.center - DVec2::new(100.0, 100.0)).length() < 1e-9);
     }
 

@@ -94,18 +94,18 @@ impl Shutter {
         }
     }
 
-    /// Raw moments ∫a, ∫a·t, ∫a·t² over [t0, t1], unnormalized.
-    fn raw_moments(&self, t0: f64, t1: f64) -> [f64; 3] {
+    /// Moments ∫a, ∫a·s, ∫a·s² over [t0, t1] (clipped to the open interval), unnormalized, with
+    /// s = t − c measured from the clipped interval's centre c, which is returned too. Taking them
+    /// about the centre keeps the variance of a short interval free of cancellation.
+    fn central_moments(&self, t0: f64, t1: f64) -> ([f64; 3], f64) {
         let (t0, t1) = (t0.max(self.open), t1.min(self.close));
+        let c = 0.5 * (t0 + t1);
         if !(t1 > t0) {
-            return [0.0; 3];
+            return ([0.0; 3], c);
         }
         if self.shape == ShutterShape::Box {
-            return [
-                t1 - t0,
-                0.5 * (t1 * t1 - t0 * t0),
-                (t1.powi(3) - t0.powi(3)) / 3.0,
-            ];
+            let length = t1 - t0;
+            return ([length, 0.0, length.powi(3) / 12.0], c);
         }
         // The tent has a kink at the middle: integrate each side separately, where the weight is smooth.
         let mid = self.middle();
@@ -125,15 +125,15 @@ impl Shutter {
                 );
                 let (centre, half) = (0.5 * (pa + pb), 0.5 * (pb - pa));
                 for (node, w) in GAUSS_LEGENDRE_8 {
-                    let t = centre + half * node;
-                    let aw = w * half * self.weight(t);
+                    let s = centre - c + half * node;
+                    let aw = w * half * self.weight(c + s);
                     sums[0] += aw;
-                    sums[1] += aw * t;
-                    sums[2] += aw * t * t;
+                    sums[1] += aw * s;
+                    sums[2] += aw * s * s;
                 }
             }
         }
-        sums
+        (sums, c)
     }
 
     /// Mass, mean and variance of time over [t0, t1] (clipped to the open interval).
@@ -146,21 +146,20 @@ impl Shutter {
     /// ```
     #[must_use]
     pub fn moments(&self, t0: f64, t1: f64) -> TimeMoments {
-        let total = self.raw_moments(self.open, self.close)[0];
-        let [m0, m1, m2] = self.raw_moments(t0, t1);
+        let total = self.central_moments(self.open, self.close).0[0];
+        let ([m0, m1, m2], c) = self.central_moments(t0, t1);
         if !(m0 > 0.0) {
-            let mean = 0.5 * (t0 + t1);
             return TimeMoments {
                 mass: 0.0,
-                mean,
+                mean: 0.5 * (t0 + t1),
                 variance: 0.0,
             };
         }
-        let mean = m1 / m0;
+        let offset = m1 / m0;
         TimeMoments {
             mass: m0 / total,
-            mean,
-            variance: (m2 / m0 - mean * mean).max(0.0),
+            mean: c + offset,
+            variance: (m2 / m0 - offset * offset).max(0.0),
         }
     }
 
@@ -239,6 +238,25 @@ mod tests {
         let mean = m1 / m0;
         assert!((m.mean - mean).abs() < 1e-9);
         assert!((m.variance - (m2 / m0 - mean * mean)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn tiny_intervals_keep_their_variance() {
+        // 1e-7 of the frame at t ≈ 0.7: about the centre, Δ²/12 survives; about 0 it would cancel.
+        for shape in [
+            ShutterShape::Box,
+            ShutterShape::Tent,
+            ShutterShape::Gaussian,
+        ] {
+            let (a, b) = (0.7, 0.7 + 1e-7);
+            let m = shutter(shape).moments(a, b);
+            let expected = (b - a) * (b - a) / 12.0;
+            assert!(
+                (m.variance / expected - 1.0).abs() < 1e-3,
+                "{shape:?}: {} vs {expected}",
+                m.variance
+            );
+        }
     }
 
     #[test]

@@ -8,6 +8,10 @@
 //! splat's screen area times the shutter mass of the sub-segment. The masses of all sub-segments
 //! sum to one, so a blurred splat carries exactly the energy of the static one.
 //!
+//! A surfel that turns away from the camera during a sub-segment keeps the share of the weight
+//! for the time it faces it (its facing cosine taken as linear in between); one that faces away
+//! at both ends is culled.
+//!
 //! Chained sub-segments: consecutive ellipses are one chord length apart; with the uniform
 //! variance alone (σ = 0.29 chord) a small splat's chain shows beads — the striping Heinzle
 //! §4.5 attributes to this method. Where a surfel's own spread along the motion is under half a
@@ -25,6 +29,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::project::{object_footprints_at, view_surfel, Cull, Culled, Instant, SurfelView};
 use crate::raster::{Footprint, ScreenSplat, Sym2, TimeBins, TimeExtent, PREFILTER_VARIANCE_PX2};
 use crate::scene::Scene;
+use crate::shutter::TimeMoments;
 use glam::DVec2;
 use rayon::prelude::*;
 
@@ -57,6 +62,10 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
             .collect();
         let chained = segments.len() > 1;
+        let moments: Vec<TimeMoments> = segments
+            .iter()
+            .map(|&[t0, t1]| scene.shutter.moments(t0, t1))
+            .collect();
         // Kept footprints and cull counts per surfel: with hundreds of sub-segments per surfel,
         // most of them off screen, collecting every result first would cost gigabytes.
         let per_surfel: Vec<(Vec<Footprint>, Culled)> = object
@@ -70,7 +79,9 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
                 let (mut kept, mut culled) = (Vec::new(), Culled::default());
                 for (k, &segment) in segments.iter().enumerate() {
                     let result = match (&views[k], &views[k + 1]) {
-                        (Some(a), Some(b)) => motion_ellipse(scene, a, b, segment, chained),
+                        (Some(a), Some(b)) => {
+                            motion_ellipse(scene, a, b, segment, &moments[k], chained)
+                        }
                         _ => Err(Cull::BehindNear),
                     };
                     culled.keep(result, &mut kept);
@@ -101,31 +112,46 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
 /// Depth gradient of a motion ellipse. A pixel on the chord is covered when the moving splat
 /// passes over it, so along the chord depth follows the surfel (Δd over the chord length) and
 /// across it the splat plane's gradient holds. When the chord is short against the splat's own
-/// spread along it, the along-chord slope would be extrapolated far past the chord's ends, so it
-/// fades out as chord² / (chord² + (2σ)²); the tolerance, which includes |Δd|/2, covers the rest.
+/// spread σ along it, the footprint is mostly the splat, so the along-chord slope blends from the
+/// plane's to the streak's as f = chord² / (chord² + (2σ)²).
 fn streak_depth_gradient(plane: DVec2, chord: DVec2, depth_change: f64, splat: Sym2) -> DVec2 {
     let chord_sq = chord.length_squared();
     if !(chord_sq > 0.0) {
         return plane;
     }
-    let along = chord / chord_sq.sqrt();
-    let across = plane - along * plane.dot(along);
-    across + chord * (depth_change / (chord_sq + 4.0 * splat.quadratic(along)))
+    let length = chord_sq.sqrt();
+    let along = chord / length;
+    let plane_slope = plane.dot(along);
+    let f = chord_sq / (chord_sq + 4.0 * splat.quadratic(along));
+    plane - along * plane_slope + along * (plane_slope + (depth_change / length - plane_slope) * f)
 }
 
-/// The motion ellipse of one surfel over [t0, t1], seen as `a` at t0 and `b` at t1.
+/// Share of a sub-segment during which a surfel faces the camera, taking its facing cosine to
+/// change linearly between the ends.
+fn front_facing_share(a: f64, b: f64) -> f64 {
+    match (a > 0.0, b > 0.0) {
+        (true, true) => 1.0,
+        (false, false) => 0.0,
+        (true, false) => a / (a - b),
+        (false, true) => b / (b - a),
+    }
+}
+
+/// The motion ellipse of one surfel over [t0, t1], seen as `a` at t0 and `b` at t1, with the
+/// shutter `moments` of the interval.
 fn motion_ellipse(
     scene: &Scene,
     a: &SurfelView,
     b: &SurfelView,
     [t0, t1]: [f64; 2],
+    moments: &TimeMoments,
     chained: bool,
 ) -> Result<Footprint, Cull> {
-    if !a.front_facing && !b.front_facing {
+    let facing = front_facing_share(a.facing, b.facing);
+    if !(facing > 0.0) {
         return Err(Cull::BackFacing);
     }
     let (a, b) = (&a.splat, &b.splat);
-    let moments = scene.shutter.moments(t0, t1);
     let s = ((moments.mean - t0) / (t1 - t0)).clamp(0.0, 1.0);
     let lerp = |x: f64, y: f64| x + (y - x) * s;
     let chord = b.center - a.center;
@@ -161,7 +187,7 @@ fn motion_ellipse(
     let ellipse = ScreenSplat {
         center: a.center + chord * s,
         covariance: splat + Sym2::outer(chord).scaled(motion_variance),
-        weight: lerp(a.weight, b.weight) * moments.mass,
+        weight: lerp(a.weight, b.weight) * moments.mass * facing,
         colour: [0, 1, 2].map(|c| lerp(f64::from(a.colour[c]), f64::from(b.colour[c])) as f32),
         depth: lerp(a.depth, b.depth),
         depth_gradient: streak_depth_gradient(
