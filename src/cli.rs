@@ -54,7 +54,7 @@ struct RenderArgs {
     #[arg(long)]
     exr: Option<PathBuf>,
     /// Frames averaged by `reference`.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, value_parser = sample_count())]
     samples: usize,
     /// Instant drawn by `static`, in normalized frame time [0, 1] (default: mid-exposure).
     #[arg(long)]
@@ -77,10 +77,10 @@ struct StudyArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Frames in the converged reference.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = 1024, value_parser = sample_count())]
     reference_samples: usize,
     /// Largest reference sample count studied (1, 2, 4, … up to this).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, value_parser = sample_count())]
     max_samples: usize,
     /// Timed runs per setting (the median is reported).
     #[arg(long, default_value_t = 3)]
@@ -98,10 +98,15 @@ struct GalleryArgs {
     #[arg(short, long, default_value = "gallery-out")]
     output: PathBuf,
     /// Frames averaged by `reference`.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, value_parser = sample_count())]
     samples: usize,
     #[command(flatten)]
     image: ImageArgs,
+}
+
+/// Sample counts from 1 to [`streak::render::MAX_SAMPLES`].
+fn sample_count() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::new().range(1..=streak::render::MAX_SAMPLES as u64)
 }
 
 /// Parse the command line and do the job.
@@ -133,16 +138,8 @@ pub fn run() -> Result<()> {
 fn load(path: &Path, image: &ImageArgs) -> Result<Scene> {
     let mut scene = Scene::load(path)?;
     if let (Some(w), Some(h)) = (image.width, image.height) {
-        if w == 0
-            || h == 0
-            || w > streak::scene::MAX_IMAGE_SIDE
-            || h > streak::scene::MAX_IMAGE_SIDE
-        {
-            return Err(Error::Usage(format!(
-                "--width/--height {w}×{h}: each must be between 1 and {}",
-                streak::scene::MAX_IMAGE_SIDE
-            )));
-        }
+        streak::scene::check_image_size(w, h)
+            .map_err(|message| Error::Usage(format!("--width/--height {message}")))?;
         scene.camera = scene.camera.resized(w, h);
     }
     Ok(scene)
@@ -157,9 +154,13 @@ fn bar(len: u64, what: &str) -> ProgressBar {
 }
 
 fn run_render(args: RenderArgs) -> Result<()> {
-    if !(args.tolerance > 0.0 && args.tolerance.is_finite()) {
+    if !streak::plan::TOLERANCE_RANGE_PX.contains(&args.tolerance) {
+        let (lo, hi) = (
+            streak::plan::TOLERANCE_RANGE_PX.start(),
+            streak::plan::TOLERANCE_RANGE_PX.end(),
+        );
         return Err(Error::Usage(format!(
-            "--tolerance {}: must be a positive number of pixels",
+            "--tolerance {}: must be between {lo} and {hi} pixels",
             args.tolerance
         )));
     }
@@ -169,9 +170,6 @@ fn run_render(args: RenderArgs) -> Result<()> {
                 "--time {t}: frame time is normalized to [0, 1]"
             )));
         }
-    }
-    if args.samples == 0 {
-        return Err(Error::Usage("--samples must be at least 1".into()));
     }
     let scene = load(&args.scene, &args.image)?;
     let start = Instant::now();
@@ -216,15 +214,6 @@ fn run_render(args: RenderArgs) -> Result<()> {
 }
 
 fn run_study(args: StudyArgs) -> Result<()> {
-    if args.reference_samples < 2
-        || args.max_samples == 0
-        || args.max_samples >= args.reference_samples
-    {
-        return Err(Error::Usage(format!(
-            "--max-samples {} must be at least 1 and below --reference-samples {}",
-            args.max_samples, args.reference_samples
-        )));
-    }
     let scene = load(&args.scene, &args.image)?;
     let options = StudyOptions {
         reference_samples: args.reference_samples,
@@ -243,7 +232,12 @@ fn run_study(args: StudyArgs) -> Result<()> {
         scene.camera.height,
         scene.surfel_count()
     );
-    write_error_vs_time_svg(&points, &title, &args.output.join("study.svg"))?;
+    // A scene where nothing moves gives every method zero error: nothing to draw on log axes.
+    if points.iter().all(|p| p.error.rmse == 0.0) {
+        eprintln!("every method matches the reference exactly (nothing moves): no plot written");
+    } else {
+        write_error_vs_time_svg(&points, &title, &args.output.join("study.svg"))?;
+    }
     let table = study::table(&points);
     std::fs::write(args.output.join("study.md"), &table).map_err(|e| Error::io(&args.output, e))?;
     print!("{table}");
@@ -277,9 +271,6 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
             "{}: no .toml scene files here",
             args.scenes.display()
         )));
-    }
-    if args.samples == 0 {
-        return Err(Error::Usage("--samples must be at least 1".into()));
     }
     const METHODS: [Method; 3] = [Method::Static, Method::Blur, Method::Reference];
     let progress = bar((scenes.len() * METHODS.len()) as u64, "gallery");

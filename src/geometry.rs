@@ -248,38 +248,17 @@ pub fn build_surfels(
             "a procedural shape needs `spacing`, the distance between surfels",
         )
     })?;
-    // Grid sampling makes about area / spacing² surfels (rounding up adds at most one row per side).
-    let estimate = surface_area_bound(shape) / (spacing * spacing);
-    if !(estimate <= MAX_SURFELS_PER_OBJECT) {
-        return Err(Error::input(
+    let mut surfels = sample_primitive(shape, spacing).ok_or_else(|| {
+        Error::input(
             file,
             field.replace(".shape", ".spacing"),
-            format!("{spacing} would make about {estimate:.0} surfels (at most {MAX_SURFELS_PER_OBJECT:.0}): use a larger spacing"),
-        ));
-    }
-    let mut surfels = sample_primitive(shape, spacing);
+            format!("{spacing} would make more than {MAX_SURFELS_PER_OBJECT:.0} surfels: use a larger spacing"),
+        )
+    })?;
     for s in &mut surfels {
         s.colour = colour_for(colour, s.normal, None);
     }
     Ok(surfels)
-}
-
-/// The surface area of a procedural shape (an upper bound for the torus knot).
-fn surface_area_bound(shape: &Shape) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    match *shape {
-        Shape::Sphere { radius } => 4.0 * PI * radius * radius,
-        Shape::Quad { size } => size[0] * size[1],
-        Shape::Box { size: [x, y, z] } => 2.0 * (x * y + y * z + z * x),
-        Shape::Cylinder { radius, length } => TAU * radius * (length + radius),
-        Shape::Torus { major, minor } => TAU * TAU * major * minor,
-        // The core curve's speed is at most scale·√((3p)² + q²) per radian of its parameter.
-        Shape::TorusKnot { p, q, scale, tube } => {
-            let speed = scale * (9.0 * f64::from(p).powi(2) + f64::from(q).powi(2)).sqrt();
-            TAU * tube * TAU * speed
-        }
-        Shape::Ply { .. } => 0.0,
-    }
 }
 
 /// Surfels from a point cloud, estimating what the file does not give.
@@ -310,8 +289,8 @@ fn surfels_from_cloud(
 }
 
 /// Sample a procedural `shape` into surfels about `spacing` apart (white; the caller colours them).
-fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
-    let mut out = Vec::new();
+fn sample_primitive(shape: &Shape, spacing: f64) -> Option<Vec<Surfel>> {
+    let mut out = Sampler::default();
     match *shape {
         Shape::Ply { .. } => {}
         Shape::Sphere { radius } => sample_sphere(radius, spacing, &mut out),
@@ -336,7 +315,7 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
                 }
             }
             // The loop above orients each face by its cross product; make them all point out.
-            for s in &mut out {
+            for s in &mut out.surfels {
                 let centre_dir = s.position;
                 if s.normal.dot(centre_dir) < 0.0 {
                     s.normal = -s.normal;
@@ -401,13 +380,32 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Vec<Surfel> {
             sample_parametric_with(surface, spacing, outward_at, &mut out);
         }
     }
-    out
+    (!out.over_budget).then_some(out.surfels)
+}
+
+/// Surfels being sampled, within [`MAX_SURFELS_PER_OBJECT`].
+#[derive(Default)]
+struct Sampler {
+    surfels: Vec<Surfel>,
+    over_budget: bool,
+}
+
+impl Sampler {
+    /// Whether `count` more surfels fit; remembers when they do not.
+    fn reserve(&mut self, count: usize) -> bool {
+        let fits = self.surfels.len().saturating_add(count) as f64 <= MAX_SURFELS_PER_OBJECT;
+        self.over_budget |= !fits;
+        fits
+    }
 }
 
 /// Fibonacci-spiral samples: near-uniform density with exactly equal areas.
-fn sample_sphere(radius: f64, spacing: f64, out: &mut Vec<Surfel>) {
+fn sample_sphere(radius: f64, spacing: f64, out: &mut Sampler) {
     let total_area = 4.0 * std::f64::consts::PI * radius * radius;
     let count = cell_count(total_area / (spacing * spacing));
+    if !out.reserve(count) {
+        return;
+    }
     let area = total_area / count as f64;
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     for i in 0..count {
@@ -415,7 +413,7 @@ fn sample_sphere(radius: f64, spacing: f64, out: &mut Vec<Surfel>) {
         let ring = (1.0 - z * z).max(0.0).sqrt();
         let phi = golden * i as f64;
         let normal = DVec3::new(ring * phi.cos(), z, ring * phi.sin());
-        out.push(Surfel::isotropic(
+        out.surfels.push(Surfel::isotropic(
             normal * radius,
             normal,
             area,
@@ -426,37 +424,44 @@ fn sample_sphere(radius: f64, spacing: f64, out: &mut Vec<Surfel>) {
 }
 
 /// A parallelogram centred at `centre` spanned by `span_a`, `span_b`, normal along their cross product.
-fn sample_quad(centre: DVec3, span_a: DVec3, span_b: DVec3, spacing: f64, out: &mut Vec<Surfel>) {
+fn sample_quad(centre: DVec3, span_a: DVec3, span_b: DVec3, spacing: f64, out: &mut Sampler) {
     let (na, nb) = (
         cell_count(span_a.length() / spacing),
         cell_count(span_b.length() / spacing),
     );
+    if !out.reserve(na.saturating_mul(nb)) {
+        return;
+    }
     let (step_a, step_b) = (span_a / na as f64, span_b / nb as f64);
     let outward = span_a.cross(span_b);
     let corner = centre - 0.5 * (span_a + span_b);
     for j in 0..nb {
         for i in 0..na {
             let p = corner + step_a * (i as f64 + 0.5) + step_b * (j as f64 + 0.5);
-            out.extend(Surfel::from_cell(p, step_a, step_b, outward));
+            out.surfels
+                .extend(Surfel::from_cell(p, step_a, step_b, outward));
         }
     }
 }
 
 /// A disc of `radius` at `centre` facing `normal`, in concentric rings of near-square cells.
-fn sample_disc(centre: DVec3, normal: DVec3, radius: f64, spacing: f64, out: &mut Vec<Surfel>) {
+fn sample_disc(centre: DVec3, normal: DVec3, radius: f64, spacing: f64, out: &mut Sampler) {
     let (e1, e2) = normal.any_orthonormal_pair();
     let rings = cell_count(radius / spacing);
     let dr = radius / rings as f64;
     for k in 0..rings {
         let r = (k as f64 + 0.5) * dr;
         let n = cell_count(std::f64::consts::TAU * r / spacing);
+        if !out.reserve(n) {
+            return;
+        }
         let dphi = std::f64::consts::TAU / n as f64;
         for i in 0..n {
             let phi = (i as f64 + 0.5) * dphi;
             let radial = e1 * phi.cos() + e2 * phi.sin();
             let around = normal.cross(radial);
             // Cell area is exactly the annular sector r·dr·dφ.
-            out.extend(Surfel::from_cell(
+            out.surfels.extend(Surfel::from_cell(
                 centre + radial * r,
                 radial * dr,
                 around * (r * dphi),
@@ -471,7 +476,7 @@ fn sample_parametric(
     surface: impl Fn(f64, f64) -> DVec3,
     spacing: f64,
     outward: impl Fn(DVec3) -> DVec3,
-    out: &mut Vec<Surfel>,
+    out: &mut Sampler,
 ) {
     sample_parametric_with(&surface, spacing, |u, v| outward(surface(u, v)), out);
 }
@@ -482,7 +487,7 @@ fn sample_parametric_with(
     surface: impl Fn(f64, f64) -> DVec3,
     spacing: f64,
     outward: impl Fn(f64, f64) -> DVec3,
-    out: &mut Vec<Surfel>,
+    out: &mut Sampler,
 ) {
     let mean_length = |along_u: bool| {
         let (lines, steps) = (8, 256);
@@ -504,6 +509,9 @@ fn sample_parametric_with(
     };
     let nu = cell_count(mean_length(true) / spacing);
     let nv = cell_count(mean_length(false) / spacing);
+    if !out.reserve(nu.saturating_mul(nv)) {
+        return;
+    }
     let (du, dv) = (1.0 / nu as f64, 1.0 / nv as f64);
     for j in 0..nv {
         for i in 0..nu {
@@ -511,7 +519,7 @@ fn sample_parametric_with(
             let h = 1e-3;
             let step_u = (surface(u + h * du, v) - surface(u - h * du, v)) / (2.0 * h);
             let step_v = (surface(u, v + h * dv) - surface(u, v - h * dv)) / (2.0 * h);
-            out.extend(Surfel::from_cell(
+            out.surfels.extend(Surfel::from_cell(
                 surface(u, v),
                 step_u,
                 step_v,
@@ -566,7 +574,7 @@ mod tests {
             ),
         ];
         for (primitive, expected) in cases {
-            let surfels = sample_primitive(&primitive, 0.02);
+            let surfels = sample_primitive(&primitive, 0.02).unwrap();
             let area = total_area(&surfels);
             assert!(
                 (area - expected).abs() < 2e-3 * expected,
@@ -586,7 +594,8 @@ mod tests {
                 tube,
             },
             0.01,
-        );
+        )
+        .unwrap();
         // Pappus: a tube of radius r around a curve of length L (curvature radius ≫ r) has area 2πrL.
         let n = 100_000;
         let curve = |u: f64| {
@@ -633,7 +642,7 @@ mod tests {
             },
         ];
         for primitive in cases {
-            for s in sample_primitive(&primitive, 0.05) {
+            for s in sample_primitive(&primitive, 0.05).unwrap() {
                 assert!((s.normal.length() - 1.0).abs() < 1e-9);
                 let outward = match primitive {
                     Shape::Torus { major, .. } => {
@@ -665,7 +674,8 @@ mod tests {
                 tube,
             },
             0.02,
-        );
+        )
+        .unwrap();
         // Stepping outward along the normal by a bit of the tube radius must leave the tube:
         // no sample may lie within the tube around the stepped point's nearest sample.
         for s in surfels.iter().step_by(37) {
@@ -691,9 +701,27 @@ mod tests {
     }
 
     #[test]
+    fn thin_shapes_cannot_slip_past_the_surfel_budget() {
+        // Area/spacing² would be 1e6, but the grid is ⌈1000/1e-6⌉ × 1 = 1e9 cells.
+        let sliver = Shape::Quad {
+            size: [1000.0, 1e-9],
+        };
+        assert!(sample_primitive(&sliver, 1e-6).is_none());
+        let thin_torus = Shape::Torus {
+            major: 1e3,
+            minor: 1e-9,
+        };
+        assert!(sample_primitive(&thin_torus, 1e-5).is_none());
+    }
+
+    #[test]
     fn sampling_density_follows_spacing() {
-        let coarse = sample_primitive(&Shape::Sphere { radius: 1.0 }, 0.1).len();
-        let fine = sample_primitive(&Shape::Sphere { radius: 1.0 }, 0.05).len();
+        let coarse = sample_primitive(&Shape::Sphere { radius: 1.0 }, 0.1)
+            .unwrap()
+            .len();
+        let fine = sample_primitive(&Shape::Sphere { radius: 1.0 }, 0.05)
+            .unwrap()
+            .len();
         assert!((fine as f64 / coarse as f64 - 4.0).abs() < 0.05);
     }
 }

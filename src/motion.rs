@@ -59,13 +59,12 @@ pub struct Motion {
 }
 
 impl Motion {
-    /// A motion through `keyframes`, which must be non-empty and sorted by time (the scene loader
-    /// checks both and reports the field).
+    /// A motion through `keyframes`, or `None` unless they are non-empty and sorted by time (the
+    /// scene loader checks both first and names the field).
     #[must_use]
-    pub fn new(keyframes: Vec<Keyframe>) -> Self {
-        debug_assert!(!keyframes.is_empty());
-        debug_assert!(keyframes.windows(2).all(|w| w[0].t <= w[1].t));
-        Motion { keyframes }
+    pub fn new(keyframes: Vec<Keyframe>) -> Option<Self> {
+        let sorted = keyframes.windows(2).all(|w| w[0].t <= w[1].t);
+        (!keyframes.is_empty() && sorted).then_some(Motion { keyframes })
     }
 
     /// An object that does not move.
@@ -76,37 +75,28 @@ impl Motion {
         }
     }
 
-    /// The keyframes.
-    #[must_use]
-    pub fn keyframes(&self) -> &[Keyframe] {
-        &self.keyframes
-    }
-
     /// The pose at time `t`.
     #[must_use]
     pub fn pose_at(&self, t: f64) -> Pose {
         let keys = &self.keyframes;
-        let first = keys[0];
-        let last = keys[keys.len() - 1];
-        if t <= first.t || keys.len() == 1 {
-            return first.pose;
+        // The first keyframe at or after t (binary search: scenes may have many keyframes).
+        let next = keys.partition_point(|k| k.t < t);
+        if next == 0 {
+            return keys[0].pose;
         }
-        if t >= last.t {
-            return last.pose;
+        if next == keys.len() {
+            return keys[next - 1].pose;
         }
-        for pair in keys.windows(2) {
-            let (a, b) = (pair[0], pair[1]);
-            if t <= b.t {
-                let span = b.t - a.t;
-                let s = if span > 0.0 { (t - a.t) / span } else { 1.0 };
-                return Pose {
-                    translation: a.pose.translation.lerp(b.pose.translation, s),
-                    rotation: a.pose.rotation.slerp(b.pose.rotation, s).normalize(),
-                    scale: a.pose.scale + (b.pose.scale - a.pose.scale) * s,
-                };
-            }
+        if keys[next].t == t {
+            return keys[next].pose;
         }
-        last.pose
+        let (a, b) = (keys[next - 1], keys[next]);
+        let s = (t - a.t) / (b.t - a.t);
+        Pose {
+            translation: a.pose.translation.lerp(b.pose.translation, s),
+            rotation: a.pose.rotation.slerp(b.pose.rotation, s).normalize(),
+            scale: a.pose.scale + (b.pose.scale - a.pose.scale) * s,
+        }
     }
 
     /// Whether the pose changes anywhere inside [t0, t1].
@@ -149,6 +139,7 @@ mod tests {
                 },
             },
         ])
+        .unwrap()
     }
 
     #[test]
@@ -171,6 +162,16 @@ mod tests {
         assert!((mid.scale - 1.25).abs() < 1e-12);
         assert_eq!(motion.pose_at(-1.0), Pose::IDENTITY);
         assert_eq!(motion.pose_at(2.0), motion.pose_at(1.0));
+    }
+
+    #[test]
+    fn empty_or_unsorted_keyframes_make_no_motion() {
+        assert!(Motion::new(Vec::new()).is_none());
+        let key = |t| Keyframe {
+            t,
+            pose: Pose::IDENTITY,
+        };
+        assert!(Motion::new(vec![key(0.5), key(0.2)]).is_none());
     }
 
     #[test]

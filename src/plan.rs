@@ -17,6 +17,10 @@ use glam::DVec2;
 /// along the motion convolved with the splat) at its ends, so shorter segments converge to it.
 pub const SEGMENT_LENGTH_PER_TOLERANCE: f64 = 32.0;
 
+/// Range of the sub-segment tolerance, px. Below it sub-segments only cost time; above it a
+/// single motion ellipse may span the image many times over, and its tile lists with it.
+pub const TOLERANCE_RANGE_PX: std::ops::RangeInclusive<f64> = 1e-3..=64.0;
+
 /// Most sub-segments per keyframe interval: bounds the work for absurdly fast motion.
 pub const MAX_SEGMENTS_PER_INTERVAL: usize = 256;
 
@@ -69,9 +73,16 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Decide what `scene` needs at a screen-space tolerance of `tolerance_px`.
+    /// Decide what `scene` needs at a screen-space tolerance of `tolerance_px` (clamped to
+    /// [`TOLERANCE_RANGE_PX`]).
     #[must_use]
     pub fn new(scene: &Scene, tolerance_px: f64) -> Plan {
+        let tolerance_px = if tolerance_px.is_nan() {
+            1.0
+        } else {
+            tolerance_px
+        }
+        .clamp(*TOLERANCE_RANGE_PX.start(), *TOLERANCE_RANGE_PX.end());
         let objects = scene
             .objects
             .iter()

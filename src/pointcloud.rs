@@ -43,10 +43,25 @@ pub struct PointCloud {
 /// normal of zero length (normals are scaled to unit length), a radius that is not positive, a
 /// float colour outside [0, 1].
 pub fn read_ply(path: &Path) -> Result<PointCloud> {
+    let too_large = || {
+        Error::input(
+            path,
+            "file",
+            format!("larger than {MAX_PLY_BYTES} bytes (uncompressed): not read"),
+        )
+    };
+    let metadata = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !metadata.is_file() {
+        return Err(Error::input(path, "file", "not a regular file"));
+    }
+    if metadata.len() > MAX_PLY_BYTES {
+        return Err(too_large());
+    }
     let raw = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if path.extension().is_some_and(|ext| ext == "gz") {
         let mut bytes = Vec::new();
         flate2::read::MultiGzDecoder::new(raw.as_slice())
+            .take(MAX_PLY_BYTES + 1)
             .read_to_end(&mut bytes)
             .map_err(|e| {
                 Error::input(
@@ -55,11 +70,18 @@ pub fn read_ply(path: &Path) -> Result<PointCloud> {
                     format!("cannot decompress the file: {e}"),
                 )
             })?;
+        if bytes.len() as u64 > MAX_PLY_BYTES {
+            return Err(too_large());
+        }
         parse_ply(&bytes, path)
     } else {
         parse_ply(&raw, path)
     }
 }
+
+/// Largest PLY file read, after decompression: 2 GiB holds tens of millions of points, and a
+/// bound keeps a corrupt or hostile `.gz` from exhausting memory.
+pub const MAX_PLY_BYTES: u64 = 2 << 30;
 
 /// Same as [`read_ply`], from uncompressed bytes already in memory; `path` is only used for error
 /// messages.

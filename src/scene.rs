@@ -15,7 +15,7 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 /// Largest image side accepted.
-pub const MAX_IMAGE_SIDE: u32 = 16384;
+pub const MAX_IMAGE_SIDE: u32 = 8192;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -250,16 +250,40 @@ fn positive(path: &Path, field: &str, v: f64) -> Result<f64> {
     }
 }
 
-fn colour(path: &Path, field: &str, v: [f64; 3]) -> Result<[f32; 3]> {
-    let c = finite3(path, field, v)?;
-    if c.min_element() < 0.0 {
-        return Err(Error::input(
+/// Largest colour component or light intensity accepted: values above 1 are bright (HDR), but
+/// past this they overflow the f32 colour buffers into infinities.
+pub const MAX_RADIANCE: f64 = 1e4;
+
+/// A value in [0, MAX_RADIANCE].
+fn radiance(path: &Path, field: &str, v: f64) -> Result<f64> {
+    if (0.0..=MAX_RADIANCE).contains(&finite(path, field, v)?) {
+        Ok(v)
+    } else {
+        Err(Error::input(
             path,
             field,
-            "colour components must not be negative (linear RGB, 0 to 1)",
-        ));
+            format!("{v}: must be between 0 and {MAX_RADIANCE} (linear)"),
+        ))
     }
-    Ok(c.as_vec3().to_array())
+}
+
+fn colour(path: &Path, field: &str, v: [f64; 3]) -> Result<[f32; 3]> {
+    let mut rgb = [0.0f32; 3];
+    for (i, c) in v.iter().enumerate() {
+        rgb[i] = radiance(path, &format!("{field}[{i}]"), *c)? as f32;
+    }
+    Ok(rgb)
+}
+
+/// Check an image size: each side from 1 to [`MAX_IMAGE_SIDE`].
+pub fn check_image_size(width: u32, height: u32) -> std::result::Result<(), String> {
+    if (1..=MAX_IMAGE_SIDE).contains(&width) && (1..=MAX_IMAGE_SIDE).contains(&height) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{width}×{height}: each side must be between 1 and {MAX_IMAGE_SIDE} pixels"
+        ))
+    }
 }
 
 fn validate(spec: SceneSpec, path: &Path) -> Result<Scene> {
@@ -268,7 +292,7 @@ fn validate(spec: SceneSpec, path: &Path) -> Result<Scene> {
     let lighting = match &spec.lighting {
         None => Lighting::default(),
         Some(l) => Lighting {
-            ambient: finite(path, "lighting.ambient", l.ambient)?,
+            ambient: radiance(path, "lighting.ambient", l.ambient)?,
             lights: l
                 .light
                 .iter()
@@ -286,7 +310,7 @@ fn validate(spec: SceneSpec, path: &Path) -> Result<Scene> {
                         })?;
                     Ok(Light {
                         direction,
-                        intensity: finite(path, &format!("{field}.intensity"), light.intensity)?,
+                        intensity: radiance(path, &format!("{field}.intensity"), light.intensity)?,
                     })
                 })
                 .collect::<Result<_>>()?,
@@ -336,15 +360,8 @@ fn validate_camera(c: &CameraSpec, path: &Path) -> Result<Camera> {
             format!("{fov}: the vertical field of view is in degrees, between 0 and 180"),
         ));
     }
-    for (field, v) in [("camera.width", c.width), ("camera.height", c.height)] {
-        if v == 0 || v > MAX_IMAGE_SIDE {
-            return Err(Error::input(
-                path,
-                field,
-                format!("{v}: must be between 1 and {MAX_IMAGE_SIDE} pixels"),
-            ));
-        }
-    }
+    check_image_size(c.width, c.height)
+        .map_err(|message| Error::input(path, "camera.width/height", message))?;
     let near = positive(
         path,
         "camera.near",
@@ -458,11 +475,8 @@ fn validate_object(o: &ObjectSpec, index: usize, path: &Path, base: &Path) -> Re
             },
         });
     }
-    let motion = if keyframes.is_empty() {
-        Motion::still(Pose::IDENTITY)
-    } else {
-        Motion::new(keyframes)
-    };
+    // Times were checked to increase above, so only an empty list is left for `still`.
+    let motion = Motion::new(keyframes).unwrap_or_else(|| Motion::still(Pose::IDENTITY));
     Ok(Object {
         name,
         surfels,

@@ -165,16 +165,13 @@ impl Shutter {
 
     /// `count` equal strata of the exposure with their moments: the reference's sample times
     /// (stratum midpoints) and weights (stratum masses).
-    #[must_use]
-    pub fn strata(&self, count: usize) -> Vec<(f64, f64)> {
+    pub fn strata(&self, count: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
         let step = self.duration() / count as f64;
-        (0..count)
-            .map(|i| {
-                let t0 = self.open + step * i as f64;
-                let t1 = t0 + step;
-                (0.5 * (t0 + t1), self.moments(t0, t1).mass)
-            })
-            .collect()
+        (0..count).map(move |i| {
+            let t0 = self.open + step * i as f64;
+            let t1 = t0 + step;
+            (0.5 * (t0 + t1), self.moments(t0, t1).mass)
+        })
     }
 }
 
@@ -216,7 +213,7 @@ mod tests {
             ShutterShape::Gaussian,
         ] {
             let s = shutter(shape);
-            let sum: f64 = s.strata(7).iter().map(|&(_, mass)| mass).sum();
+            let sum: f64 = s.strata(7).map(|(_, mass)| mass).sum();
             assert!((sum - 1.0).abs() < 1e-9, "{shape:?}: {sum}");
         }
     }

@@ -12,7 +12,7 @@ use crate::metrics::compare;
 use crate::output::{read_exr, write_exr, write_png};
 use crate::plan::Plan;
 use crate::plot::StudyPoint;
-use crate::render::{render, Method, Render, Settings};
+use crate::render::{render, Method, Render, Settings, MAX_SAMPLES};
 use crate::scene::Scene;
 use indicatif::ProgressBar;
 use std::hash::{Hash, Hasher};
@@ -118,6 +118,16 @@ pub fn run(
     options: &StudyOptions,
     progress: Option<&ProgressBar>,
 ) -> Result<Vec<StudyPoint>> {
+    if !(options.reference_samples <= MAX_SAMPLES
+        && options.max_samples >= 1
+        && options.max_samples < options.reference_samples
+        && options.repeats >= 1)
+    {
+        return Err(Error::Usage(format!(
+            "study: need 1 ≤ max samples ({}) < reference samples ({}) ≤ {MAX_SAMPLES} and at least one repeat ({})",
+            options.max_samples, options.reference_samples, options.repeats
+        )));
+    }
     std::fs::create_dir_all(&options.out_dir).map_err(|e| Error::io(&options.out_dir, e))?;
     let reference = converged_reference(
         scene,

@@ -88,17 +88,10 @@ impl<const B: usize> PixelState<B> {
         self.remaining < OPAQUE_REMAINDER
     }
 
-    /// Add footprint `f` with weight `w`, whose plane lies at `depth` here and which covers the
-    /// pixel during `window` (normalized frame time).
+    /// Add footprint `f` with weight `w` at this pixel, (x, y).
     #[inline]
-    pub(super) fn add(
-        &mut self,
-        f: &Footprint,
-        w: f32,
-        depth: f32,
-        window: [f32; 2],
-        bins: &TimeBins<B>,
-    ) {
+    pub(super) fn add(&mut self, f: &Footprint, w: f32, [x, y]: [u32; 2], bins: &TimeBins<B>) {
+        let depth = f.depth_at(x, y);
         let same_surface = depth - self.group_depth <= self.group_tolerance.max(f.depth_tolerance);
         if !same_surface {
             self.close_group(bins);
@@ -112,7 +105,7 @@ impl<const B: usize> PixelState<B> {
         if B == 1 {
             self.group_coverage[0] += w;
         } else {
-            self.deposit(w, window, bins);
+            self.deposit(w, f.time_window_at(x, y), bins);
         }
     }
 
@@ -197,7 +190,7 @@ mod tests {
     fn composite<const B: usize>(layers: &[(Footprint, f32)], bins: &TimeBins<B>) -> [f32; 3] {
         let mut pixel = PixelState::<B>::EMPTY;
         for (f, w) in layers {
-            pixel.add(f, *w, f.depth, f.time_window_at(0, 0), bins);
+            pixel.add(f, *w, [0, 0], bins);
         }
         pixel.finish([0.0, 0.0, 1.0], bins)
     }

@@ -285,6 +285,31 @@ impl Footprint {
         ]
     }
 
+    /// Call `visit` with the index of every tile (in a row of `tiles_x`) whose pixels the
+    /// footprint reaches. A long tilted motion ellipse crosses a thin diagonal band of its bounding
+    /// box's tiles, so footprints spanning at least three tile rows and columns are binned by the
+    /// row spans of each tile row; smaller ones take their whole box, which costs less to find.
+    fn for_each_tile(&self, tiles_x: usize, mut visit: impl FnMut(usize)) {
+        let [x0, y0, x1, y1] = self.bounds;
+        let (tx0, tx1) = (x0 / TILE_PX, (x1 - 1) / TILE_PX);
+        let (ty0, ty1) = (y0 / TILE_PX, (y1 - 1) / TILE_PX);
+        for ty in ty0..=ty1 {
+            let (lo, hi) = if tx1 - tx0 < 2 || ty1 - ty0 < 2 {
+                (x0, x1)
+            } else {
+                let rows = y0.max(ty * TILE_PX)..y1.min((ty + 1) * TILE_PX);
+                rows.map(|y| self.row_span(y))
+                    .filter(|(a, b)| a < b)
+                    .fold((u32::MAX, 0), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)))
+            };
+            if lo < hi {
+                for tx in lo / TILE_PX..=(hi - 1) / TILE_PX {
+                    visit(ty as usize * tiles_x + tx as usize);
+                }
+            }
+        }
+    }
+
     /// Depth of the splat plane at the centre of pixel (x, y).
     #[inline]
     #[must_use]
@@ -341,14 +366,6 @@ pub fn rasterize<const B: usize>(
 ) -> (Framebuffer, RasterStats) {
     let tiles_x = width.div_ceil(TILE_PX) as usize;
     let tiles_y = height.div_ceil(TILE_PX) as usize;
-    let tile_range = |f: &Footprint| {
-        let [x0, y0, x1, y1] = f.bounds;
-        let t = TILE_PX;
-        (
-            (x0 / t) as usize..(x1 - 1) as usize / t as usize + 1,
-            (y0 / t) as usize..(y1 - 1) as usize / t as usize + 1,
-        )
-    };
 
     // Depth order with the index as tie-break: a total order, so the sort is deterministic.
     let mut order: Vec<u32> = (0..footprints.len() as u32).collect();
@@ -362,12 +379,7 @@ pub fn rasterize<const B: usize>(
     // Bin into a compressed per-tile list (counts, offsets, entries), in depth order.
     let mut starts = vec![0usize; tiles_x * tiles_y + 1];
     for f in footprints {
-        let (xs, ys) = tile_range(f);
-        for ty in ys {
-            for tx in xs.clone() {
-                starts[ty * tiles_x + tx + 1] += 1;
-            }
-        }
+        f.for_each_tile(tiles_x, |tile| starts[tile + 1] += 1);
     }
     for i in 1..starts.len() {
         starts[i] += starts[i - 1];
@@ -375,14 +387,10 @@ pub fn rasterize<const B: usize>(
     let mut fill = starts.clone();
     let mut entries = vec![0u32; starts[tiles_x * tiles_y]];
     for &index in &order {
-        let (xs, ys) = tile_range(&footprints[index as usize]);
-        for ty in ys {
-            for tx in xs.clone() {
-                let slot = &mut fill[ty * tiles_x + tx];
-                entries[*slot] = index;
-                *slot += 1;
-            }
-        }
+        footprints[index as usize].for_each_tile(tiles_x, |tile| {
+            entries[fill[tile]] = index;
+            fill[tile] += 1;
+        });
     }
 
     let blocks: Vec<Vec<[f32; 3]>> = (0..tiles_x * tiles_y)
@@ -447,7 +455,7 @@ fn render_tile<const B: usize>(
                 }
                 let weight = f.weight_at(x, y);
                 if weight > 0.0 {
-                    state.add(f, weight, f.depth_at(x, y), f.time_window_at(x, y), bins);
+                    state.add(f, weight, [x, y], bins);
                 }
             }
         }

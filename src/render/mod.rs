@@ -41,6 +41,9 @@ impl Method {
     }
 }
 
+/// Most frames the reference may average (and the study may ask for).
+pub const MAX_SAMPLES: usize = 1 << 16;
+
 /// What to render and at which quality.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
@@ -107,7 +110,12 @@ pub fn render(
             scene,
             settings.time.unwrap_or_else(|| scene.shutter.middle()),
         ),
-        Method::Reference => reference::render(scene, plan, settings.samples.max(1), progress),
+        Method::Reference => reference::render(
+            scene,
+            plan,
+            settings.samples.clamp(1, MAX_SAMPLES),
+            progress,
+        ),
         Method::Blur => blur::render(scene, plan),
     }
 }

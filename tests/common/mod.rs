@@ -59,6 +59,7 @@ pub fn pose(translation: DVec3, rotation_z_degrees: f64) -> Pose {
 /// A motion through poses at the given times.
 pub fn motion(keys: &[(f64, Pose)]) -> Motion {
     Motion::new(keys.iter().map(|&(t, pose)| Keyframe { t, pose }).collect())
+        .expect("sorted keyframes")
 }
 
 pub fn object(surfels: Vec<Surfel>, motion: Motion) -> Object {
