@@ -193,8 +193,12 @@ fn run_render(args: RenderArgs) -> Result<()> {
     if args.explain {
         print!("{}", plan.explain(Some(&out.stats.culled)));
         println!(
-            "rendered {} footprints in {} frame(s) ({} reused) in {seconds:.3} s; largest tile list {}",
-            out.stats.footprints, out.stats.frames, out.stats.reused_footprints, out.stats.max_per_tile
+            "rendered {} footprints in {} frame(s) ({} reused) in {seconds:.3} s; tile lists: {} entries, longest {}",
+            out.stats.footprints,
+            out.stats.frames,
+            out.stats.reused_footprints,
+            out.stats.tile_entries,
+            out.stats.max_per_tile
         );
         let surfel_instants = scene.surfel_count() * out.stats.frames;
         println!(

@@ -8,7 +8,7 @@
 use serde::Deserialize;
 
 /// How the shutter weights time while it is open.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ShutterShape {
     /// Constant weight: an ideal mechanical shutter.

@@ -15,11 +15,9 @@ use crate::project::{object_footprints_at, Culled};
 use crate::raster::{rasterize, Footprint, RasterStats, TimeBins};
 use crate::scene::Scene;
 use indicatif::ProgressBar;
-use serde::Deserialize;
 
 /// A rendering method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Method {
     /// Sharp EWA splatting at one instant.
     Static,
@@ -78,6 +76,8 @@ pub struct Stats {
     pub reused_footprints: usize,
     /// The largest per-tile footprint list seen.
     pub max_per_tile: usize,
+    /// The most footprint–tile pairs binned for one frame (4 bytes each).
+    pub tile_entries: usize,
 }
 
 impl Stats {
@@ -85,6 +85,7 @@ impl Stats {
         self.footprints += raster.footprints;
         self.frames += 1;
         self.max_per_tile = self.max_per_tile.max(raster.max_per_tile);
+        self.tile_entries = self.tile_entries.max(raster.tile_entries);
     }
 }
 
