@@ -150,7 +150,7 @@ impl Plan {
             }
         }
         line(if self.lit {
-            "  lighting: Lambertian shading of every surfel at every instant it is seen".to_string()
+            "  lighting: ambient plus Lambertian shading of every surfel at every instant it is seen".to_string()
         } else {
             "  lighting: none, so no shading pass (colours drawn as given)".to_string()
         });

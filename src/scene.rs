@@ -141,10 +141,11 @@ pub struct Lighting {
 }
 
 impl Lighting {
-    /// Whether any shading happens at all.
+    /// Whether any shading happens at all: a scene without a `[lighting]` table (no lights, no
+    /// ambient term) is drawn with its colours as given.
     #[must_use]
     pub fn is_lit(&self) -> bool {
-        !self.lights.is_empty()
+        !self.lights.is_empty() || self.ambient != 0.0
     }
 
     /// The colour of a surface of `albedo` with world-space unit normal `normal`.

@@ -160,6 +160,50 @@ fn keyframes_out_of_order_or_outside_the_frame_are_rejected() {
 }
 
 #[test]
+fn half_turns_lights_colours_and_budgets_are_rejected() {
+    let half_turn = SCENE.replace(
+        "translate = [0.5, 0, 0]",
+        "rotate = { axis = [0, 1, 0], degrees = 190 }",
+    );
+    rejected(
+        "half-turn",
+        &half_turn,
+        &[],
+        &["object[0].keyframe[1].rotate", "add keyframes"],
+    );
+    let dark = format!("{SCENE}\n[lighting]\nlight = [{{ direction = [0, 0, 0] }}]\n");
+    rejected("light", &dark, &[], &["lighting.light[0].direction"]);
+    rejected(
+        "colour",
+        &SCENE.replace("spacing = 0.1", "spacing = 0.1\ncolour = [1e30, 0, 0]"),
+        &[],
+        &["object[0].colour[0]"],
+    );
+    rejected(
+        "budget",
+        &SCENE.replace("spacing = 0.1", "spacing = 1e-5"),
+        &[],
+        &["object[0].spacing", "larger spacing"],
+    );
+    rejected(
+        "up",
+        &SCENE.replace("fov_y = 40", "fov_y = 40\nup = [0, 0, 1]"),
+        &[],
+        &["camera.up"],
+    );
+    let many_neighbours = PLY_SCENE.replace(
+        "path = \"cloud.ply\"",
+        "path = \"cloud.ply\", neighbours = 500",
+    );
+    rejected(
+        "neighbours",
+        &many_neighbours,
+        &[],
+        &["object[0].shape.neighbours"],
+    );
+}
+
+#[test]
 fn bad_shutters_and_cameras_are_rejected() {
     rejected(
         "shutter",
