@@ -161,7 +161,8 @@ fn motion_ellipse(
         yy: lerp(a.covariance.yy, b.covariance.yy),
     } + Sym2::isotropic(PREFILTER_VARIANCE_PX2);
     let duration = t1 - t0;
-    let mut motion_variance = moments.variance / (duration * duration);
+    let uniform_variance = moments.variance / (duration * duration);
+    let mut motion_variance = uniform_variance;
     let chord_sq = chord.length_squared();
     // Variance of the splat along the chord, in chord lengths squared (∞ without motion).
     let along = if chord_sq > 0.0 {
@@ -173,7 +174,11 @@ fn motion_ellipse(
         motion_variance = motion_variance.max(0.25 - along);
     }
     // A pixel on the chord is covered while the splat passes: about √3 standard deviations of
-    // the splat either side of its passing time (a box of the same variance).
+    // the splat either side of its passing time (a box of the same variance), within the
+    // sub-segment. Widening spreads a chained ellipse past its chord's ends, into its neighbours'
+    // time; the span grows by as much (√3 × the added standard deviation), or that coverage would
+    // pile into the sub-segment's first and last bins.
+    let reach = (3.0 * (motion_variance - uniform_variance)).sqrt() * duration;
     let time = TimeExtent {
         center: moments.mean,
         gradient: if chord_sq > 0.0 {
@@ -182,7 +187,10 @@ fn motion_ellipse(
             DVec2::ZERO
         },
         half_width: (3.0 * along).sqrt().min(1.0) * duration,
-        span: [t0, t1],
+        span: [
+            (t0 - reach).max(scene.shutter.open),
+            (t1 + reach).min(scene.shutter.close),
+        ],
     };
     let ellipse = ScreenSplat {
         center: a.center + chord * s,
