@@ -33,11 +33,12 @@ use crate::shutter::TimeMoments;
 use glam::DVec2;
 use rayon::prelude::*;
 
-/// Bins of shutter time in which coverage is composited (see [`crate::raster::TimeBins`]). A bin
-/// is a sixteenth of the exposure: a surface that covers a pixel for part of a bin is smeared over
-/// the whole bin, which is finer than the ≈ 1/8 exposure steps the tolerance-driven sub-segments
-/// of a typical path take.
-const TIME_BINS: usize = 16;
+/// Bins of shutter time in which coverage is composited (see [`crate::raster::TimeBins`]). Where
+/// one bin holds coverage of a surface from two depth groups it is still composited as layers,
+/// and a little background leaks; measured against 16 bins, 32 lowered RMSE on every gallery
+/// scene (falling sphere at τ = 1 px: 0.0073 → 0.0060; bunny at τ = 0.25 px: 0.019 → 0.016) for
+/// about 10 % more time.
+const TIME_BINS: usize = 32;
 
 pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
     let mut stats = Stats::default();
