@@ -1,4 +1,4 @@
-//! The linear float image every renderer writes, and its encodings (sRGB PNG, OpenEXR).
+//! The linear float image every renderer writes (files are written by [`crate::output`]).
 
 /// A linear-light RGB image, row-major, pixel (0,0) top-left.
 #[derive(Clone, Debug, PartialEq)]

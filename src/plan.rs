@@ -180,6 +180,12 @@ fn screen_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<D
         .map(|(px, _)| px)
 }
 
+/// [t0, t1] cut into `k` equal pieces.
+fn pieces(t0: f64, t1: f64, k: usize) -> impl Iterator<Item = [f64; 2]> {
+    let at = move |i: usize| t0 + (t1 - t0) * i as f64 / k as f64;
+    (0..k).map(move |i| [at(i), at(i + 1)])
+}
+
 /// Distance of `p` from the segment a–b.
 fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
     let ab = b - a;
@@ -201,9 +207,7 @@ fn measure(
     k: usize,
 ) -> (f64, f64) {
     let (mut deviation, mut longest) = (0.0f64, 0.0f64);
-    for piece in 0..k {
-        let a = t0 + (t1 - t0) * piece as f64 / k as f64;
-        let b = t0 + (t1 - t0) * (piece + 1) as f64 / k as f64;
+    for [a, b] in pieces(t0, t1, k) {
         for &probe in probes {
             let (Some(pa), Some(pb)) = (
                 screen_at(camera, object, probe, a),
@@ -262,12 +266,7 @@ fn plan_motion(
         };
         deviation_px = deviation_px.max(deviation);
         longest_segment_px = longest_segment_px.max(longest);
-        segments.extend((0..k).map(|i| {
-            [
-                t0 + (t1 - t0) * i as f64 / k as f64,
-                t0 + (t1 - t0) * (i + 1) as f64 / k as f64,
-            ]
-        }));
+        segments.extend(pieces(t0, t1, k));
     }
     let path_px = probes
         .iter()

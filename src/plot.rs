@@ -15,7 +15,7 @@ use std::path::Path;
 /// One measured point of a study: a method at one setting of its quality knob.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct StudyPoint {
-    /// Name of the method, e.g. "accumulation"; points with the same name form one series.
+    /// Name of the method, e.g. "reference"; points with the same name form one series.
     pub method: String,
     /// The knob setting as it should be printed, e.g. "N=16" or "τ=1px".
     pub knob: String,

@@ -125,7 +125,8 @@ pub struct Culled {
     pub off_screen: usize,
     /// Centre behind the near plane.
     pub behind_near: usize,
-    /// No weight: seen exactly edge-on, no shutter time, or not finite.
+    /// No weight: seen almost edge-on (exactly edge-on counts as back-facing), too faint, no
+    /// shutter time, or not finite.
     pub degenerate: usize,
 }
 
