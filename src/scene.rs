@@ -52,23 +52,18 @@ fn default_up() -> [f64; 3] {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 struct ShutterSpec {
-    #[serde(default)]
     open: f64,
-    #[serde(default = "one")]
     close: f64,
-    #[serde(default)]
     shape: ShutterShape,
 }
 
+/// Missing shutter fields take [`Shutter::default`]'s values.
 impl Default for ShutterSpec {
     fn default() -> Self {
-        ShutterSpec {
-            open: 0.0,
-            close: 1.0,
-            shape: ShutterShape::Box,
-        }
+        let Shutter { open, close, shape } = Shutter::default();
+        ShutterSpec { open, close, shape }
     }
 }
 

@@ -256,12 +256,20 @@ impl ScreenSplat {
 }
 
 impl Footprint {
+    /// Offset of the centre of pixel (x, y) from the footprint's centre.
+    #[inline]
+    fn offset(&self, x: u32, y: u32) -> [f32; 2] {
+        [
+            x as f32 + 0.5 - self.center[0],
+            y as f32 + 0.5 - self.center[1],
+        ]
+    }
+
     /// The footprint's value at the centre of pixel (x, y), zero beyond the cut-off.
     #[inline]
     #[must_use]
     pub fn weight_at(&self, x: u32, y: u32) -> f32 {
-        let dx = x as f32 + 0.5 - self.center[0];
-        let dy = y as f32 + 0.5 - self.center[1];
+        let [dx, dy] = self.offset(x, y);
         let q = self.conic[0] * dx * dx + 2.0 * self.conic[1] * dx * dy + self.conic[2] * dy * dy;
         if q > CUTOFF_Q {
             0.0
@@ -274,8 +282,7 @@ impl Footprint {
     #[inline]
     #[must_use]
     pub fn time_window_at(&self, x: u32, y: u32) -> [f32; 2] {
-        let dx = x as f32 + 0.5 - self.center[0];
-        let dy = y as f32 + 0.5 - self.center[1];
+        let [dx, dy] = self.offset(x, y);
         let [lo, hi] = self.time_span;
         let t = (self.time_center + self.time_gradient[0] * dx + self.time_gradient[1] * dy)
             .clamp(lo, hi);
@@ -314,8 +321,7 @@ impl Footprint {
     #[inline]
     #[must_use]
     pub fn depth_at(&self, x: u32, y: u32) -> f32 {
-        let dx = x as f32 + 0.5 - self.center[0];
-        let dy = y as f32 + 0.5 - self.center[1];
+        let [dx, dy] = self.offset(x, y);
         self.depth + self.depth_gradient[0] * dx + self.depth_gradient[1] * dy
     }
 

@@ -122,9 +122,8 @@ fn streak_depth_gradient(plane: DVec2, chord: DVec2, depth_change: f64, splat: S
     }
     let length = chord_sq.sqrt();
     let along = chord / length;
-    let plane_slope = plane.dot(along);
     let f = chord_sq / (chord_sq + 4.0 * splat.quadratic(along));
-    plane - along * plane_slope + along * (plane_slope + (depth_change / length - plane_slope) * f)
+    plane + along * ((depth_change / length - plane.dot(along)) * f)
 }
 
 /// Share of a sub-segment during which a surfel faces the camera, taking its facing cosine to
