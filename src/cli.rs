@@ -3,9 +3,12 @@
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
+use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
 use streak::study::{self, StudyOptions, DEFAULT_TOLERANCE_PX};
+use streak::style::Style;
 use streak::{output, render, Error, Method, Plan, Result, Scene, Settings};
 
 /// Motion blur and motion hints for point-based geometry.
@@ -22,7 +25,8 @@ enum Command {
     Render(RenderArgs),
     /// Measure every method's error against a converged reference, against its run time.
     Study(StudyArgs),
-    /// Render every scene of a gallery folder with each method.
+    /// Render every scene of a gallery folder with each method and style, and write a page that
+    /// compares them.
     Gallery(GalleryArgs),
 }
 
@@ -59,9 +63,12 @@ struct RenderArgs {
     /// Instant drawn by `static`, in normalized frame time [0, 1] (default: mid-exposure).
     #[arg(long)]
     time: Option<f64>,
-    /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`).
+    /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`, `hint`).
     #[arg(long, default_value_t = DEFAULT_TOLERANCE_PX)]
     tolerance: f64,
+    /// Style file for `hint` (default: the scene's `style`, else the built-in default style).
+    #[arg(long)]
+    style: Option<PathBuf>,
     /// Print the plan, and what was left out and why, with counts.
     #[arg(long)]
     explain: bool,
@@ -85,6 +92,10 @@ struct StudyArgs {
     /// Timed runs per setting (the median is reported).
     #[arg(long, default_value_t = 3)]
     repeats: usize,
+    /// Style files `hint` is timed with (repeatable; default: the scene's style, else the
+    /// built-in default).
+    #[arg(long)]
+    style: Vec<PathBuf>,
     #[command(flatten)]
     image: ImageArgs,
 }
@@ -100,6 +111,10 @@ struct GalleryArgs {
     /// Frames averaged by `reference`.
     #[arg(long, default_value_t = 256, value_parser = sample_count())]
     samples: usize,
+    /// Styles every scene is drawn with as a hint: style files, or folders of them (each scene's
+    /// own `style` is drawn too).
+    #[arg(long, num_args = 1.., default_value = "styles")]
+    styles: Vec<PathBuf>,
     #[command(flatten)]
     image: ImageArgs,
 }
@@ -174,10 +189,21 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let scene = load(&args.scene, &args.image)?;
     let start = Instant::now();
     let plan = Plan::new(&scene, args.tolerance);
+    if args.style.is_some() && args.method != Method::Hint {
+        return Err(Error::Usage(format!(
+            "--style applies to -m hint only, not -m {}",
+            args.method.name()
+        )));
+    }
+    let style = match args.style.as_ref().or(scene.style.as_ref()) {
+        Some(path) if args.method == Method::Hint => Some(Arc::new(Style::load(path)?)),
+        _ => None,
+    };
     let settings = Settings {
         method: args.method,
         time: args.time,
         samples: args.samples,
+        style,
     };
     let progress =
         (args.method == Method::Reference).then(|| bar(args.samples as u64, "reference frames"));
@@ -192,6 +218,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
     }
     if args.explain {
         print!("{}", plan.explain(Some(&out.stats.culled)));
+        if args.method == Method::Hint {
+            print!("{}", out.stats.hint.explain());
+        }
         println!(
             "rendered {} footprints in {} frame(s) ({} reused) in {seconds:.3} s; tile lists: {} entries, longest {}",
             out.stats.footprints,
@@ -219,11 +248,20 @@ fn run_render(args: RenderArgs) -> Result<()> {
 
 fn run_study(args: StudyArgs) -> Result<()> {
     let scene = load(&args.scene, &args.image)?;
+    let style_paths: Vec<&PathBuf> = if args.style.is_empty() {
+        scene.style.iter().collect()
+    } else {
+        args.style.iter().collect()
+    };
     let options = StudyOptions {
         reference_samples: args.reference_samples,
         max_samples: args.max_samples,
         repeats: args.repeats,
         out_dir: args.output.clone(),
+        styles: style_paths
+            .into_iter()
+            .map(|p| Style::load(p).map(Arc::new))
+            .collect::<Result<_>>()?,
     };
     let progress = bar(args.reference_samples as u64, "converged reference");
     let points = study::run(&scene, &options, Some(&progress))?;
@@ -264,44 +302,48 @@ fn run_study(args: StudyArgs) -> Result<()> {
 }
 
 fn run_gallery(args: GalleryArgs) -> Result<()> {
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&args.scenes)
-        .map_err(|e| Error::io(&args.scenes, e))?
-        .filter_map(|entry| entry.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    scenes.sort();
+    let scenes = toml_files(&args.scenes)?;
     if scenes.is_empty() {
         return Err(Error::Usage(format!(
             "{}: no .toml scene files here",
             args.scenes.display()
         )));
     }
-    const METHODS: [Method; 3] = [Method::Static, Method::Blur, Method::Reference];
-    let progress = bar((scenes.len() * METHODS.len()) as u64, "gallery");
-    for path in &scenes {
-        let scene = load(path, &args.image)?;
-        let plan = Plan::new(&scene, DEFAULT_TOLERANCE_PX);
-        let stem = path
-            .file_stem()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .to_string();
-        for method in METHODS {
-            progress.set_message(format!("{stem} {}", method.name()));
-            let settings = Settings {
-                method,
-                time: None,
-                samples: args.samples,
-            };
-            let start = Instant::now();
-            let out = render(&scene, &plan, &settings, None);
-            let file = args.output.join(format!("{stem}-{}.png", method.name()));
-            output::write_png(&out.image, &file)?;
-            let seconds = start.elapsed().as_secs_f64();
-            progress.suspend(|| eprintln!("wrote {} ({seconds:.3} s)", file.display()));
-            progress.inc(1);
+    if let (Some(w), Some(h)) = (args.image.width, args.image.height) {
+        streak::scene::check_image_size(w, h)
+            .map_err(|message| Error::Usage(format!("--width/--height {message}")))?;
+    }
+    let mut style_files = Vec::new();
+    for path in &args.styles {
+        if path.is_dir() {
+            style_files.extend(toml_files(path)?);
+        } else {
+            style_files.push(path.clone());
         }
     }
+    let options = GalleryOptions {
+        styles: style_files
+            .iter()
+            .map(|p| Style::load(p).map(Arc::new))
+            .collect::<Result<_>>()?,
+        scenes,
+        samples: args.samples,
+        out_dir: args.output.clone(),
+        size: args.image.width.zip(args.image.height),
+    };
+    // Per scene: reference, static, blur, and a hint per style (the scene's own style may add one).
+    let per_scene = 3 + options.styles.len() as u64;
+    let progress = bar(options.scenes.len() as u64 * per_scene, "gallery");
+    let rows = gallery::run(&options, Some(&progress))?;
     progress.finish_and_clear();
+    for row in &rows {
+        let line: Vec<String> = row
+            .shots
+            .iter()
+            .map(|s| format!("{} {} {:.2} s", s.method, s.knob, s.seconds))
+            .collect();
+        eprintln!("{}: {}", row.name, line.join(", "));
+    }
+    eprintln!("wrote {}", args.output.join("index.html").display());
     Ok(())
 }

@@ -42,6 +42,7 @@
 pub mod camera;
 pub mod error;
 pub mod framebuffer;
+pub mod gallery;
 pub mod geometry;
 pub mod metrics;
 pub mod motion;
@@ -55,6 +56,7 @@ pub mod render;
 pub mod scene;
 pub mod shutter;
 pub mod study;
+pub mod style;
 
 pub use error::{Error, Result};
 pub use framebuffer::Framebuffer;

@@ -11,7 +11,8 @@ use crate::camera::Camera;
 use crate::geometry::Surfel;
 use crate::motion::Pose;
 use crate::raster::{
-    Footprint, Rejection, ScreenSplat, Sym2, TimeExtent, CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2,
+    Footprint, Profile, Rejection, ScreenSplat, Sym2, TimeExtent, CUTOFF_SIGMAS,
+    PREFILTER_VARIANCE_PX2,
 };
 use crate::scene::{Lighting, Object};
 use glam::{DAffine3, DMat3, DVec2, DVec3};
@@ -38,6 +39,12 @@ impl Instant {
             to_view: camera.view * pose.to_affine(),
             rotation: pose.rotation_matrix(),
         }
+    }
+
+    /// An object-space unit normal turned into world space.
+    #[must_use]
+    pub fn world_normal(&self, normal: DVec3) -> DVec3 {
+        (self.rotation * normal).normalize_or_zero()
     }
 }
 
@@ -79,14 +86,13 @@ pub fn view_surfel(
             center,
             covariance: Sym2::outer(ju) + Sym2::outer(jv),
             weight: surfel.area * ju.perp_dot(jv).abs() / object_area,
-            colour: lighting.shade(
-                surfel.colour,
-                (instant.rotation * surfel.normal).normalize_or_zero(),
-            ),
+            colour: lighting.shade(surfel.colour, instant.world_normal(surfel.normal)),
             depth,
             depth_gradient,
             depth_tolerance,
             time: TimeExtent::WHOLE_FRAME,
+            profile: Profile::Gaussian,
+            additive: false,
         },
         facing: -normal_view.dot(p_view) / (normal_view.length() * p_view.length()),
     })

@@ -26,6 +26,7 @@ struct SceneSpec {
     #[serde(default)]
     shutter: ShutterSpec,
     lighting: Option<LightingSpec>,
+    style: Option<PathBuf>,
     #[serde(default)]
     object: Vec<ObjectSpec>,
 }
@@ -149,13 +150,18 @@ impl Lighting {
         if !self.is_lit() {
             return albedo;
         }
-        let irradiance = self.ambient
-            + self
-                .lights
-                .iter()
-                .map(|l| l.intensity * normal.dot(l.direction).max(0.0))
-                .sum::<f64>();
+        let irradiance = self.ambient + self.direct(normal);
         albedo.map(|c| c * irradiance as f32)
+    }
+
+    /// Irradiance from the lights alone on a surface with world-space unit normal `normal`:
+    /// Σ intensity · max(0, N·L).
+    #[must_use]
+    pub fn direct(&self, normal: DVec3) -> f64 {
+        self.lights
+            .iter()
+            .map(|l| l.intensity * normal.dot(l.direction).max(0.0))
+            .sum()
     }
 }
 
@@ -185,6 +191,8 @@ pub struct Scene {
     pub lighting: Lighting,
     /// The objects, in file order.
     pub objects: Vec<Object>,
+    /// The style file `hint` uses unless told otherwise, resolved against the scene's folder.
+    pub style: Option<PathBuf>,
 }
 
 impl Scene {
@@ -197,14 +205,7 @@ impl Scene {
 
     /// Validate scene text; `path` names the file in messages and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Scene> {
-        let spec: SceneSpec = toml::from_str(text).map_err(|e| {
-            let line = e
-                .span()
-                .map(|s| text[..s.start].matches('\n').count() + 1)
-                .unwrap_or(0);
-            Error::input(path, format!("line {line}"), e.message().trim_end())
-        })?;
-        validate(spec, path)
+        validate(parse_toml(text, path)?, path)
     }
 
     /// Total number of surfels.
@@ -214,8 +215,19 @@ impl Scene {
     }
 }
 
+/// Read TOML `text` from `path` into `T`, naming the line of any syntax error or unknown key.
+pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
+    toml::from_str(text).map_err(|e| {
+        let line = e
+            .span()
+            .map(|s| text[..s.start].matches('\n').count() + 1)
+            .unwrap_or(0);
+        Error::input(path, format!("line {line}"), e.message().trim_end())
+    })
+}
+
 /// Checks a number is finite, naming the field when it is not.
-fn finite(path: &Path, field: &str, v: f64) -> Result<f64> {
+pub(crate) fn finite(path: &Path, field: &str, v: f64) -> Result<f64> {
     if v.is_finite() {
         Ok(v)
     } else {
@@ -263,7 +275,8 @@ fn radiance(path: &Path, field: &str, v: f64) -> Result<f64> {
     }
 }
 
-fn colour(path: &Path, field: &str, v: [f64; 3]) -> Result<[f32; 3]> {
+/// A linear RGB colour, each component in [0, [`MAX_RADIANCE`]].
+pub(crate) fn colour(path: &Path, field: &str, v: [f64; 3]) -> Result<[f32; 3]> {
     let mut rgb = [0.0f32; 3];
     for (i, c) in v.iter().enumerate() {
         rgb[i] = radiance(path, &format!("{field}[{i}]"), *c)? as f32;
@@ -326,6 +339,7 @@ fn validate(spec: SceneSpec, path: &Path) -> Result<Scene> {
         shutter,
         lighting,
         objects,
+        style: spec.style.map(|s| base.join(s)),
     })
 }
 

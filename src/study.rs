@@ -14,9 +14,11 @@ use crate::plan::Plan;
 use crate::plot::StudyPoint;
 use crate::render::{render, Method, Render, Settings, MAX_SAMPLES};
 use crate::scene::Scene;
+use crate::style::Style;
 use indicatif::ProgressBar;
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Blur tolerances studied, px (the plan's chord-deviation tolerance).
@@ -36,10 +38,13 @@ pub struct StudyOptions {
     pub repeats: usize,
     /// Where rendered images and the cached reference go.
     pub out_dir: PathBuf,
+    /// Styles `hint` is timed with (the default style when empty). A hint is not meant to match
+    /// the reference; its error is reported to show how far it departs from it.
+    pub styles: Vec<Arc<Style>>,
 }
 
 /// One setting to study.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Setting {
     settings: Settings,
     tolerance_px: f64,
@@ -51,7 +56,15 @@ impl Setting {
             Method::Static => "t=mid".to_string(),
             Method::Blur => format!("τ={}px", self.tolerance_px),
             Method::Reference => format!("N={}", self.settings.samples),
+            Method::Hint => format!("style={}", self.style_name()),
         }
+    }
+
+    fn style_name(&self) -> String {
+        self.settings
+            .style
+            .as_ref()
+            .map_or_else(|| "default".into(), |s| s.name())
     }
 
     fn file_stem(&self) -> String {
@@ -59,6 +72,7 @@ impl Setting {
             Method::Static => "static".to_string(),
             Method::Blur => format!("blur-tol{}", self.tolerance_px),
             Method::Reference => format!("reference-n{}", self.settings.samples),
+            Method::Hint => format!("hint-{}", self.style_name()),
         }
     }
 }
@@ -102,8 +116,8 @@ pub fn converged_reference(
     let plan = Plan::new(scene, DEFAULT_TOLERANCE_PX);
     let settings = Settings {
         method: Method::Reference,
-        time: None,
         samples,
+        ..Settings::default()
     };
     let image = render(scene, &plan, &settings, progress).image;
     write_exr(&image, &path)?;
@@ -156,13 +170,26 @@ pub fn run(
         },
         tolerance_px,
     }));
+    let styles = if options.styles.is_empty() {
+        vec![Arc::new(Style::default())]
+    } else {
+        options.styles.clone()
+    };
+    setups.extend(styles.into_iter().map(|style| Setting {
+        settings: Settings {
+            method: Method::Hint,
+            style: Some(style),
+            ..Settings::default()
+        },
+        tolerance_px: DEFAULT_TOLERANCE_PX,
+    }));
     let mut n = 1;
     while n <= options.max_samples {
         setups.push(Setting {
             settings: Settings {
                 method: Method::Reference,
-                time: None,
                 samples: n,
+                ..Settings::default()
             },
             tolerance_px: DEFAULT_TOLERANCE_PX,
         });

@@ -288,3 +288,100 @@ fn command_line_mistakes_are_explained() {
         );
     }
 }
+
+/// Render `SCENE` (with `scene_extra` prepended) as a hint with `args`, style files written beside it.
+fn hint_run(name: &str, scene_extra: &str, styles: &[(&str, &str)], args: &[&str]) -> Output {
+    let dir = workdir(name);
+    std::fs::write(dir.join("scene.toml"), format!("{scene_extra}\n{SCENE}")).unwrap();
+    for (file, text) in styles {
+        std::fs::write(dir.join(file), text).unwrap();
+    }
+    let mut all = vec!["render", "scene.toml", "-m", "hint", "-o", "out.png"];
+    all.extend_from_slice(args);
+    streak(&all, &dir)
+}
+
+fn assert_fails_with(out: &Output, needles: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "should fail: {stderr}");
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    for needle in needles {
+        assert!(stderr.contains(needle), "{needle:?} missing from: {stderr}");
+    }
+}
+
+#[test]
+fn style_mistakes_name_the_file_and_field() {
+    let cases: [(&str, &[&str]); 6] = [
+        (
+            "[trail]\nlength = 2",
+            &["bad.toml", "trail.length", "between 0 and 1"],
+        ),
+        ("[trail]\nlenght = 0.5", &["bad.toml", "lenght", "line 2"]),
+        (
+            "[trail]\nfade = nan",
+            &["bad.toml", "trail.fade", "not a finite number"],
+        ),
+        ("[trail]\ncolour = \"ramp\"", &["bad.toml", "trail.ramp"]),
+        ("[trail]\ntexture = \"stripes\"", &["bad.toml", "line 2"]),
+        (
+            "[speed_lines]\ncount = 0",
+            &["bad.toml", "speed_lines.count"],
+        ),
+    ];
+    for (i, (text, needles)) in cases.iter().enumerate() {
+        let out = hint_run(
+            &format!("style-{i}"),
+            "",
+            &[("bad.toml", text)],
+            &["--style", "bad.toml"],
+        );
+        assert_fails_with(&out, needles);
+    }
+    // A texture image that is not there, named from the style.
+    let out = hint_run(
+        "style-texture",
+        "",
+        &[("bad.toml", "[trail]\ntexture = { image = \"gone.png\" }")],
+        &["--style", "bad.toml"],
+    );
+    assert_fails_with(&out, &["bad.toml", "trail.texture.image", "gone.png"]);
+    // A style named by the scene is read from beside the scene.
+    let out = hint_run(
+        "style-scene",
+        "style = \"look.toml\"",
+        &[("look.toml", "[object]\nflash = 2")],
+        &[],
+    );
+    assert_fails_with(&out, &["look.toml", "object.flash"]);
+    // --style belongs to hints.
+    let dir = workdir("style-method");
+    std::fs::write(dir.join("scene.toml"), SCENE).unwrap();
+    std::fs::write(dir.join("look.toml"), "").unwrap();
+    let out = streak(
+        &["render", "scene.toml", "-m", "blur", "--style", "look.toml"],
+        &dir,
+    );
+    assert_fails_with(&out, &["--style applies to -m hint only"]);
+}
+
+#[test]
+fn a_scene_may_name_its_style() {
+    let out = hint_run(
+        "style-good",
+        "style = \"look.toml\"",
+        &[(
+            "look.toml",
+            "[trail]\ncolour = \"ramp\"\nramp = [[1, 1, 1], [1, 0, 0]]",
+        )],
+        &["--explain"],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("surfels emit trails"), "{stdout}");
+}

@@ -22,6 +22,9 @@ use crate::shutter::Shutter;
 /// its 8-bit value.
 const OPAQUE_REMAINDER: f32 = 1e-4;
 
+/// The visible surface of a pixel is the first that leaves less than this share unoccluded.
+const VISIBLE_REMAINDER: f32 = 0.5;
+
 /// The shutter interval cut into `B` equal bins of time, with the shutter's mass in each.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TimeBins<const B: usize> {
@@ -63,7 +66,11 @@ pub(super) struct PixelState<const B: usize> {
     transmittance: [f32; B],
     /// Σ transmittance · mass: the share of the exposure still unoccluded.
     remaining: f32,
+    /// Depth of the group that first left less than [`VISIBLE_REMAINDER`] unoccluded.
+    front_depth: f32,
     group_colour: [f32; 3],
+    /// Light added by additive footprints of the open group.
+    group_emission: [f32; 3],
     group_weight: f32,
     group_depth: f32,
     group_tolerance: f32,
@@ -75,7 +82,9 @@ impl<const B: usize> PixelState<B> {
         colour: [0.0; 3],
         transmittance: [1.0; B],
         remaining: 1.0,
+        front_depth: f32::INFINITY,
         group_colour: [0.0; 3],
+        group_emission: [0.0; 3],
         group_weight: 0.0,
         group_depth: f32::NEG_INFINITY,
         group_tolerance: 0.0,
@@ -97,6 +106,12 @@ impl<const B: usize> PixelState<B> {
             self.close_group(bins);
             self.group_depth = depth;
             self.group_tolerance = f.depth_tolerance;
+        }
+        if f.additive {
+            for c in 0..3 {
+                self.group_emission[c] += w * f.colour[c];
+            }
+            return;
         }
         for c in 0..3 {
             self.group_colour[c] += w * f.colour[c];
@@ -131,6 +146,10 @@ impl<const B: usize> PixelState<B> {
     }
 
     fn close_group(&mut self, bins: &TimeBins<B>) {
+        // Light emitted at this depth is dimmed by what lies in front, not by its own surface.
+        for c in 0..3 {
+            self.colour[c] += self.remaining * self.group_emission[c];
+        }
         if self.group_weight > 0.0 {
             let (mut visible, mut remaining) = (0.0, 0.0);
             for b in 0..B {
@@ -146,17 +165,22 @@ impl<const B: usize> PixelState<B> {
             for c in 0..3 {
                 self.colour[c] += k * self.group_colour[c];
             }
+            if self.remaining >= VISIBLE_REMAINDER && remaining < VISIBLE_REMAINDER {
+                self.front_depth = self.group_depth;
+            }
             self.remaining = remaining;
         }
         self.group_colour = [0.0; 3];
+        self.group_emission = [0.0; 3];
         self.group_weight = 0.0;
         self.group_coverage = [0.0; B];
     }
 
-    /// The pixel's colour over `background`.
-    pub(super) fn finish(mut self, background: [f32; 3], bins: &TimeBins<B>) -> [f32; 3] {
+    /// The pixel's premultiplied colour, the share of the exposure that shows what lies behind,
+    /// and the depth of its visible surface.
+    pub(super) fn finish(mut self, bins: &TimeBins<B>) -> ([f32; 3], f32, f32) {
         self.close_group(bins);
-        [0, 1, 2].map(|c| self.colour[c] + self.remaining * background[c])
+        (self.colour, self.remaining, self.front_depth)
     }
 }
 
@@ -183,6 +207,8 @@ mod tests {
                 half_width: 0.5 * (span[1] - span[0]),
                 span,
             },
+            profile: crate::raster::Profile::Gaussian,
+            additive: false,
         };
         (splat.footprint(1, 1).unwrap(), value)
     }
@@ -192,7 +218,8 @@ mod tests {
         for (f, w) in layers {
             pixel.add(f, *w, [0, 0], bins);
         }
-        pixel.finish([0.0, 0.0, 1.0], bins)
+        let (colour, remaining, _) = pixel.finish(bins);
+        [0, 1, 2].map(|c| colour[c] + remaining * [0.0, 0.0, 1.0][c])
     }
 
     #[test]
@@ -223,6 +250,22 @@ mod tests {
             (p[0] - 1.0).abs() < 1e-5 && p[1].abs() < 1e-5 && p[2].abs() < 1e-5,
             "{p:?}"
         );
+    }
+
+    #[test]
+    fn additive_light_is_dimmed_only_by_what_lies_in_front() {
+        let bins = TimeBins::INSTANT;
+        let glow_at = |depth| {
+            let (mut f, w) = layer(0.5, [1.0, 0.0, 0.0], depth, [0.0, 1.0]);
+            f.additive = true;
+            (f, w)
+        };
+        let wall = layer(1.0, [0.0, 1.0, 0.0], 2.0, [0.0, 1.0]);
+        // Alone it adds to the background and hides nothing.
+        assert_eq!(composite(&[glow_at(3.0)], &bins), [0.5, 0.0, 1.0]);
+        // Behind an opaque wall it is hidden; in front of it, it adds to the wall.
+        assert_eq!(composite(&[wall, glow_at(3.0)], &bins), [0.0, 1.0, 0.0]);
+        assert_eq!(composite(&[glow_at(1.0), wall], &bins), [0.5, 1.0, 0.0]);
     }
 
     #[test]

@@ -14,12 +14,15 @@
 //! background is blended by uncovered time, as Guan & Mueller §3.3 and Heinzle §5.4 ask.
 
 mod composite;
+mod profile;
 
 pub use composite::TimeBins;
+pub use profile::{Profile, Texture};
 
 use crate::framebuffer::Framebuffer;
 use composite::PixelState;
 use glam::DVec2;
+use profile::Sampler;
 use rayon::prelude::*;
 
 /// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², DESIGN.md).
@@ -152,6 +155,10 @@ pub struct Footprint {
     pub time_span: [f32; 2],
     /// Pixel bounds [x0, y0, x1, y1), clipped to the image.
     pub bounds: [u32; 4],
+    /// The shape of its value across the ellipse.
+    pub profile: Profile,
+    /// Whether it adds light instead of covering what lies behind (see [`ScreenSplat::additive`]).
+    pub additive: bool,
 }
 
 /// When a footprint covers a pixel. A motion ellipse stands for a splat sliding along a chord
@@ -210,6 +217,11 @@ pub struct ScreenSplat {
     pub depth_tolerance: f64,
     /// When it covers which pixel.
     pub time: TimeExtent,
+    /// The shape of its value across the ellipse (Gaussian for every physically based renderer).
+    pub profile: Profile,
+    /// Emits light instead of covering: it adds weight × colour, dimmed by what lies in front of
+    /// it, and hides nothing (additive motion trails, Guan & Mueller §4).
+    pub additive: bool,
 }
 
 impl ScreenSplat {
@@ -217,8 +229,7 @@ impl ScreenSplat {
     /// include the pre-filter.
     pub fn footprint(&self, width: u32, height: u32) -> Result<Footprint, Rejection> {
         let conic = self.covariance.inverse().ok_or(Rejection::Degenerate)?;
-        let amplitude =
-            TRUNCATION_GAIN * self.weight / (std::f64::consts::TAU * self.covariance.det().sqrt());
+        let amplitude = self.weight / (self.profile.integral() * self.covariance.det().sqrt());
         if !(amplitude > 1e-12
             && amplitude.is_finite()
             && self.center.is_finite()
@@ -251,6 +262,8 @@ impl ScreenSplat {
             time_half_width: self.time.half_width as f32,
             time_span: self.time.span.map(|t| t as f32),
             bounds: [x0, y0, x1, y1],
+            profile: self.profile,
+            additive: self.additive,
         })
     }
 }
@@ -265,16 +278,21 @@ impl Footprint {
         ]
     }
 
-    /// The footprint's value at the centre of pixel (x, y), zero beyond the cut-off.
-    #[inline]
+    /// The footprint's value at the centre of pixel (x, y), zero beyond the cut-off; `texture`
+    /// is the image a [`Profile::Texture`] footprint maps.
     #[must_use]
-    pub fn weight_at(&self, x: u32, y: u32) -> f32 {
-        let [dx, dy] = self.offset(x, y);
+    pub fn weight_at(&self, x: u32, y: u32, texture: Option<&Texture>) -> f32 {
+        self.sampled_weight_at(&Sampler::new(self.profile, self.conic, texture), x, y)
+    }
+
+    #[inline]
+    fn sampled_weight_at(&self, sampler: &Sampler, x: u32, y: u32) -> f32 {
+        let d @ [dx, dy] = self.offset(x, y);
         let q = self.conic[0] * dx * dx + 2.0 * self.conic[1] * dx * dy + self.conic[2] * dy * dy;
         if q > CUTOFF_Q {
             0.0
         } else {
-            self.amplitude * (-0.5 * q).exp()
+            self.amplitude * sampler.value(d, q)
         }
     }
 
@@ -360,16 +378,93 @@ pub struct RasterStats {
     pub max_per_tile: usize,
 }
 
-/// Rasterize `footprints` over `background` into a `width`×`height` image, compositing coverage
-/// in the time bins `bins` (one bin for an instant).
+/// A rasterized layer, to be composited over what lies behind it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Layer {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Linear RGB, premultiplied: what the layer adds to the pixel.
+    pub colour: Vec<[f32; 3]>,
+    /// The share of what lies behind that still shows, in [0, 1].
+    pub transmittance: Vec<f32>,
+    /// Depth of the visible surface: the first where the transmittance fell below ½ (+∞ where
+    /// it never did).
+    pub front_depth: Vec<f32>,
+}
+
+impl Layer {
+    /// The layer over a plain `background`.
+    #[must_use]
+    pub fn over_colour(&self, background: [f32; 3]) -> Framebuffer {
+        self.over(&Framebuffer::filled(self.width, self.height, background))
+    }
+
+    /// The layer over `below`, an image of the same size.
+    #[must_use]
+    pub fn over(&self, below: &Framebuffer) -> Framebuffer {
+        let pixels = self
+            .colour
+            .iter()
+            .zip(&self.transmittance)
+            .zip(&below.pixels)
+            .map(|((c, &t), b)| [0, 1, 2].map(|i| c[i] + t * b[i]))
+            .collect();
+        Framebuffer {
+            width: self.width,
+            height: self.height,
+            pixels,
+        }
+    }
+
+    /// The layer with its opacity scaled by `opacity` in [0, 1].
+    #[must_use]
+    pub fn with_opacity(mut self, opacity: f32) -> Layer {
+        for (c, t) in self.colour.iter_mut().zip(&mut self.transmittance) {
+            *c = c.map(|v| v * opacity);
+            *t = 1.0 - opacity * (1.0 - *t);
+        }
+        self
+    }
+}
+
+/// Where footprints are drawn: the image size, and what some renderers add.
+#[derive(Clone, Copy, Debug)]
+pub struct Target<'a> {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// The image [`Profile::Texture`] footprints map.
+    pub texture: Option<&'a Texture>,
+    /// Per-pixel depth of surfaces drawn elsewhere (a [`Layer::front_depth`]): a footprint is
+    /// left out of a pixel where its plane lies at or behind that depth less its own tolerance.
+    pub occluder: Option<&'a [f32]>,
+}
+
+impl Target<'_> {
+    /// A plain `width`×`height` target.
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        Target {
+            width,
+            height,
+            texture: None,
+            occluder: None,
+        }
+    }
+}
+
+/// Rasterize `footprints` into a layer the size of `target`, compositing coverage in the time
+/// bins `bins` (one bin for an instant).
 #[must_use]
 pub fn rasterize<const B: usize>(
     footprints: &[Footprint],
-    width: u32,
-    height: u32,
-    background: [f32; 3],
+    target: &Target,
     bins: &TimeBins<B>,
-) -> (Framebuffer, RasterStats) {
+) -> (Layer, RasterStats) {
+    let (width, height) = (target.width, target.height);
     let tiles_x = width.div_ceil(TILE_PX) as usize;
     let tiles_y = height.div_ceil(TILE_PX) as usize;
 
@@ -399,32 +494,36 @@ pub fn rasterize<const B: usize>(
         });
     }
 
-    let blocks: Vec<Vec<[f32; 3]>> = (0..tiles_x * tiles_y)
+    let blocks: Vec<Vec<PixelOut>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|tile| {
             let (tx, ty) = ((tile % tiles_x) as u32, (tile / tiles_x) as u32);
             let list = &entries[starts[tile]..starts[tile + 1]];
-            render_tile(
-                footprints,
-                list,
-                [tx * TILE_PX, ty * TILE_PX],
-                [width, height],
-                background,
-                bins,
-            )
+            render_tile(footprints, list, [tx * TILE_PX, ty * TILE_PX], target, bins)
         })
         .collect();
 
-    let mut image = Framebuffer::filled(width, height, background);
+    let size = width as usize * height as usize;
+    let mut layer = Layer {
+        width,
+        height,
+        colour: vec![[0.0; 3]; size],
+        transmittance: vec![1.0; size],
+        front_depth: vec![f32::INFINITY; size],
+    };
     for (tile, block) in blocks.iter().enumerate() {
         let (x0, y0) = (
             (tile % tiles_x) as u32 * TILE_PX,
             (tile / tiles_x) as u32 * TILE_PX,
         );
-        let w = TILE_PX.min(width - x0);
-        for (row, chunk) in block.chunks(w as usize).enumerate() {
+        let w = TILE_PX.min(width - x0) as usize;
+        for (row, chunk) in block.chunks(w).enumerate() {
             let start = (y0 as usize + row) * width as usize + x0 as usize;
-            image.pixels[start..start + w as usize].copy_from_slice(chunk);
+            for (i, out) in chunk.iter().enumerate() {
+                layer.colour[start + i] = out.colour;
+                layer.transmittance[start + i] = out.transmittance;
+                layer.front_depth[start + i] = out.front_depth;
+            }
         }
     }
     let stats = RasterStats {
@@ -432,7 +531,15 @@ pub fn rasterize<const B: usize>(
         tile_entries: entries.len(),
         max_per_tile: starts.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0),
     };
-    (image, stats)
+    (layer, stats)
+}
+
+/// One composited pixel of a [`Layer`].
+#[derive(Clone, Copy)]
+struct PixelOut {
+    colour: [f32; 3],
+    transmittance: f32,
+    front_depth: f32,
 }
 
 /// Composite one tile's depth-sorted footprints; returns the tile's pixels row by row.
@@ -440,16 +547,16 @@ fn render_tile<const B: usize>(
     footprints: &[Footprint],
     list: &[u32],
     [x0, y0]: [u32; 2],
-    [width, height]: [u32; 2],
-    background: [f32; 3],
+    target: &Target,
     bins: &TimeBins<B>,
-) -> Vec<[f32; 3]> {
-    let x1 = (x0 + TILE_PX).min(width);
-    let y1 = (y0 + TILE_PX).min(height);
+) -> Vec<PixelOut> {
+    let x1 = (x0 + TILE_PX).min(target.width);
+    let y1 = (y0 + TILE_PX).min(target.height);
     let w = (x1 - x0) as usize;
     let mut pixels = vec![PixelState::<B>::EMPTY; w * (y1 - y0) as usize];
     for &index in list {
         let f = &footprints[index as usize];
+        let sampler = Sampler::new(f.profile, f.conic, target.texture);
         let [_, fy0, _, fy1] = f.bounds;
         for y in fy0.max(y0)..fy1.min(y1) {
             let row = (y - y0) as usize * w;
@@ -459,7 +566,13 @@ fn render_tile<const B: usize>(
                 if state.is_opaque() {
                     continue;
                 }
-                let weight = f.weight_at(x, y);
+                if let Some(occluder) = target.occluder {
+                    let front = occluder[y as usize * target.width as usize + x as usize];
+                    if f.depth_at(x, y) >= front - f.depth_tolerance {
+                        continue;
+                    }
+                }
+                let weight = f.sampled_weight_at(&sampler, x, y);
                 if weight > 0.0 {
                     state.add(f, weight, [x, y], bins);
                 }
@@ -468,7 +581,14 @@ fn render_tile<const B: usize>(
     }
     pixels
         .into_iter()
-        .map(|p| p.finish(background, bins))
+        .map(|p| {
+            let (colour, transmittance, front_depth) = p.finish(bins);
+            PixelOut {
+                colour,
+                transmittance,
+                front_depth,
+            }
+        })
         .collect()
 }
 
@@ -492,7 +612,20 @@ mod tests {
             depth_gradient: DVec2::ZERO,
             depth_tolerance: 0.01,
             time: TimeExtent::WHOLE_FRAME,
+            profile: Profile::Gaussian,
+            additive: false,
         }
+    }
+
+    fn draw(
+        footprints: &[Footprint],
+        width: u32,
+        height: u32,
+        background: [f32; 3],
+    ) -> Framebuffer {
+        rasterize(footprints, &Target::new(width, height), &TimeBins::INSTANT)
+            .0
+            .over_colour(background)
     }
 
     fn splat(center: DVec2, variance: f64, weight: f64, colour: [f32; 3], depth: f64) -> Footprint {
@@ -540,7 +673,7 @@ mod tests {
         );
         let sum: f32 = (0..64)
             .flat_map(|y| (0..64).map(move |x| (x, y)))
-            .map(|(x, y)| f.weight_at(x, y))
+            .map(|(x, y)| f.weight_at(x, y, None))
             .sum();
         // Pixel-centre sampling of the narrowest allowed Gaussian: 0.3 % (see PREFILTER_VARIANCE_PX2).
         assert!((sum - 0.8).abs() < 0.8 * 0.004, "{sum}");
@@ -551,7 +684,7 @@ mod tests {
         let red = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [1.0, 0.0, 0.0], 1.0);
         let blue = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [0.0, 0.0, 1.0], 2.0);
         for list in [vec![red, blue], vec![blue, red]] {
-            let (image, _) = rasterize(&list, 64, 64, [0.0; 3], &TimeBins::INSTANT);
+            let image = draw(&list, 64, 64, [0.0; 3]);
             let p = image.pixels[32 * 64 + 32];
             assert!(p[0] > 0.999 && p[2] < 1e-3, "{p:?}");
         }
@@ -563,7 +696,7 @@ mod tests {
         let mut b = splat(DVec2::new(32.0, 32.0), 40.0, 400.0, [0.0, 0.0, 1.0], 1.005);
         a.depth_tolerance = 0.01;
         b.depth_tolerance = 0.01;
-        let (image, _) = rasterize(&[a, b], 64, 64, [0.0; 3], &TimeBins::INSTANT);
+        let image = draw(&[a, b], 64, 64, [0.0; 3]);
         let p = image.pixels[32 * 64 + 32];
         assert!(
             (p[0] - 0.5).abs() < 1e-5 && (p[2] - 0.5).abs() < 1e-5,
@@ -581,7 +714,7 @@ mod tests {
             [1.0, 0.0, 0.0],
             1.0,
         );
-        let (image, _) = rasterize(&[f], 64, 64, [0.0, 0.0, 1.0], &TimeBins::INSTANT);
+        let image = draw(&[f], 64, 64, [0.0, 0.0, 1.0]);
         let p = image.pixels[0];
         assert!(
             (p[0] - 0.25).abs() < 1e-3 && (p[2] - 0.75).abs() < 1e-3,
@@ -626,13 +759,7 @@ mod tests {
             [1.0; 3],
             1.0,
         );
-        let (image, _) = rasterize(
-            &[f.footprint(37, 21).unwrap()],
-            37,
-            21,
-            [0.0; 3],
-            &TimeBins::INSTANT,
-        );
+        let image = draw(&[f.footprint(37, 21).unwrap()], 37, 21, [0.0; 3]);
         assert_eq!(image.pixels.len(), 37 * 21);
         assert!(image.pixels[20 * 37 + 36][0] > 0.5);
     }

@@ -4,17 +4,24 @@
 //! - [`Method::Static`]: EWA surface splatting at one instant;
 //! - [`Method::Reference`]: the shutter-weighted average of N static frames (the accumulation
 //!   buffer), the ground truth every other method is measured against;
-//! - [`Method::Blur`]: one pass of motion ellipses (Guan & Mueller §3.3).
+//! - [`Method::Blur`]: one pass of motion ellipses (Guan & Mueller §3.3);
+//! - [`Method::Hint`]: the object sharp at the flash plus a styled trail of motion ellipses
+//!   (Guan & Mueller §3.1, §4).
 
 mod blur;
+mod hint;
 mod reference;
+
+pub use hint::HintStats;
 
 use crate::framebuffer::Framebuffer;
 use crate::plan::Plan;
 use crate::project::{object_footprints_at, Culled};
-use crate::raster::{rasterize, Footprint, RasterStats, TimeBins};
+use crate::raster::{rasterize, Footprint, RasterStats, Target, TimeBins};
 use crate::scene::Scene;
+use crate::style::Style;
 use indicatif::ProgressBar;
+use std::sync::Arc;
 
 /// A rendering method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -25,6 +32,8 @@ pub enum Method {
     Blur,
     /// Average of N static frames at stratified shutter times.
     Reference,
+    /// The object sharp at the flash over a styled trail (a motion hint).
+    Hint,
 }
 
 impl Method {
@@ -35,6 +44,7 @@ impl Method {
             Method::Static => "static",
             Method::Blur => "blur",
             Method::Reference => "reference",
+            Method::Hint => "hint",
         }
     }
 }
@@ -43,7 +53,7 @@ impl Method {
 pub const MAX_SAMPLES: usize = 1 << 16;
 
 /// What to render and at which quality.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
     /// The renderer.
     pub method: Method,
@@ -51,6 +61,8 @@ pub struct Settings {
     pub time: Option<f64>,
     /// Frames averaged by `reference`.
     pub samples: usize,
+    /// The look of `hint` (default: [`Style::default`]).
+    pub style: Option<Arc<Style>>,
 }
 
 impl Default for Settings {
@@ -59,6 +71,7 @@ impl Default for Settings {
             method: Method::Blur,
             time: None,
             samples: 64,
+            style: None,
         }
     }
 }
@@ -78,6 +91,8 @@ pub struct Stats {
     pub max_per_tile: usize,
     /// The most footprint–tile pairs binned for one frame (4 bytes each).
     pub tile_entries: usize,
+    /// What `hint` left out and drew.
+    pub hint: HintStats,
 }
 
 impl Stats {
@@ -118,6 +133,10 @@ pub fn render(
             progress,
         ),
         Method::Blur => blur::render(scene, plan),
+        Method::Hint => match &settings.style {
+            Some(style) => hint::render(scene, plan, style),
+            None => hint::render(scene, plan, &Style::default()),
+        },
     }
 }
 
@@ -148,13 +167,11 @@ fn draw<const B: usize>(
     bins: &TimeBins<B>,
     stats: &mut Stats,
 ) -> Framebuffer {
-    let (image, raster) = rasterize(
+    let (layer, raster) = rasterize(
         footprints,
-        scene.camera.width,
-        scene.camera.height,
-        scene.background,
+        &Target::new(scene.camera.width, scene.camera.height),
         bins,
     );
     stats.add_raster(&raster);
-    image
+    layer.over_colour(scene.background)
 }

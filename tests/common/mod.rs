@@ -39,6 +39,7 @@ pub fn scene(camera: Camera, objects: Vec<Object>) -> Scene {
         shutter: Shutter::default(),
         lighting: Lighting::default(),
         objects,
+        style: None,
     }
 }
 
@@ -54,6 +55,26 @@ pub fn pose(translation: DVec3, rotation_z_degrees: f64) -> Pose {
         rotation: DQuat::from_rotation_z(rotation_z_degrees.to_radians()),
         scale: 1.0,
     }
+}
+
+/// A rectangle of white surfels `size` wide and high, parallel to the image plane, centred on
+/// `centre`, about `spacing` apart: an opaque surface. It faces the camera (+z) unless
+/// `facing_away`.
+pub fn patch(centre: DVec3, size: [f64; 2], spacing: f64, facing_away: bool) -> Vec<Surfel> {
+    let [nx, ny] = size.map(|s| (s / spacing).ceil().max(1.0) as usize);
+    let [hx, hy] = [size[0] / nx as f64, size[1] / ny as f64];
+    let normal = if facing_away { -DVec3::Z } else { DVec3::Z };
+    (0..nx * ny)
+        .map(|k| {
+            let (i, j) = ((k % nx) as f64, (k / nx) as f64);
+            let offset = DVec3::new(
+                (i + 0.5) * hx - size[0] / 2.0,
+                (j + 0.5) * hy - size[1] / 2.0,
+                0.0,
+            );
+            Surfel::isotropic(centre + offset, normal, hx * hy, None, [1.0; 3])
+        })
+        .collect()
 }
 
 /// A motion through poses at the given times.
@@ -74,8 +95,8 @@ pub fn draw(scene: &Scene, method: Method, tolerance_px: f64, samples: usize) ->
     let plan = Plan::new(scene, tolerance_px);
     let settings = Settings {
         method,
-        time: None,
         samples,
+        ..Settings::default()
     };
     render(scene, &plan, &settings, None).image
 }

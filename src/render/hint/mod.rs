@@ -1,0 +1,614 @@
+//! Motion hints (Guan & Mueller 2004): the object drawn sharp, as by a flash, over a trail that
+//! tells where it came from.
+//!
+//! Two layers come from the shared pipeline (§3.1, §4):
+//! - the **object layer**: every surfel drawn by static EWA splatting at the flash time;
+//! - the **trail layer**: a motion ellipse per surfel and sub-segment of the trail's time window,
+//!   the projected splat's covariance plus that of its projected motion (§3.3), made by the same
+//!   code as [`super::Method::Blur`]'s.
+//!
+//! The style ([`crate::style`]) decides the rest: the trail's window (length and offset before the
+//! flash) and its stroboscopic copies (§3.3: "a number of motion ellipses of identical
+//! orientation, but shorter along the motion direction and spaced apart"), its colour (the
+//! object's own, or a ramp driven by screen speed or by time along the trail, §3.3 and Fig. 7),
+//! footprint texture (Fig. 7), N·L and N·V modulation and additive or alpha blending (§4), and
+//! how the layers meet: the trail under the object, or one merged depth order in which closer
+//! object parts hide farther trails (§4).
+//!
+//! Each copy of the trail is drawn as a whole exposure of its own time slot: its motion ellipses
+//! carry the slot's full weight, so a short copy is as solid as a long trail, and with a trail
+//! that spans the whole exposure the trail layer is exactly [`super::Method::Blur`]'s image.
+//!
+//! Beyond the paper (its §6 lists both as future work): trails bend along rotational paths,
+//! because they follow the plan's sub-segments of the arc, and points hidden in the object image
+//! at flash time emit no trail (a visibility test against the object layer's visible depth).
+
+mod speed_lines;
+
+use super::blur::{motion_ellipse, TIME_BINS};
+use super::{Render, Stats};
+use crate::framebuffer::Framebuffer;
+use crate::plan::{ObjectMotion, Plan};
+use crate::project::{static_footprint, view_surfel, Cull, Culled, Instant, SurfelView};
+use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
+use crate::scene::{Object, Scene};
+use crate::shutter::{Shutter, ShutterShape};
+use crate::style::{
+    ramp_colour, Blend, Composite, Emitters, RampBy, Select, SpeedLines, Style, Trail, TrailColour,
+};
+use glam::DVec2;
+use rayon::prelude::*;
+use speed_lines::{LineLook, SpeedLine};
+
+/// A trail copy's own time axis: its slot mapped onto [0, 1], uniformly weighted. A hint's trail
+/// is drawn, not exposed, so the scene's shutter shape does not weight it.
+const COPY_TIME: Shutter = Shutter {
+    open: 0.0,
+    close: 1.0,
+    shape: ShutterShape::Box,
+};
+
+/// When the trail's colour or opacity changes along it, its pieces are at most this share of the
+/// trail window long, so that the change shows as a gradient rather than steps.
+const GRADIENT_PIECES: f64 = 16.0;
+
+/// Speed lines follow their point's path sampled at least this many times.
+const LINE_SAMPLES: usize = 32;
+
+/// A visible point counts as on the silhouette when the cosine between its normal and the view
+/// direction is below this (within about 70° of edge-on).
+const SILHOUETTE_COSINE: f64 = 0.35;
+
+/// What the hint renderer did beyond the shared counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HintStats {
+    /// Surfels of moving objects that emit a trail.
+    pub emitting: usize,
+    /// Surfels that emit no trail because they face away from the camera at flash time.
+    pub back_facing: usize,
+    /// Surfels that emit no trail because they are hidden in the object image at flash time.
+    pub hidden: usize,
+    /// Trail splats made.
+    pub trail_splats: usize,
+    /// Trail sub-segments left out, by reason.
+    pub trail_culled: Culled,
+    /// Speed lines drawn.
+    pub speed_lines: usize,
+}
+
+impl HintStats {
+    /// Human-readable account for `--explain`.
+    #[must_use]
+    pub fn explain(&self) -> String {
+        let c = &self.trail_culled;
+        format!(
+            "hint: {} surfels emit trails; left out: {} back-facing and {} hidden in the object image at the flash\n\
+             \x20 {} trail splats; trail sub-segments left out: {} back-facing throughout, {} off-screen, {} behind the near plane, {} without weight\n\
+             \x20 {} speed lines\n",
+            self.emitting,
+            self.back_facing,
+            self.hidden,
+            self.trail_splats,
+            c.back_facing,
+            c.off_screen,
+            c.behind_near,
+            c.degenerate,
+            self.speed_lines
+        )
+    }
+}
+
+/// A time interval [start, end] of the frame.
+type Window = [f64; 2];
+
+/// What one trail splat needs to know beyond its two views.
+struct Piece {
+    /// Real times of its ends.
+    real: Window,
+    /// Times of its ends on its copy's own axis.
+    local: Window,
+    /// Indices of its ends' instants in the copy's list.
+    ends: [usize; 2],
+    chained: bool,
+}
+
+pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
+    let camera = &scene.camera;
+    let (width, height) = (camera.width, camera.height);
+    let shutter = &scene.shutter;
+    let duration = shutter.duration();
+    let flash = shutter.open + style.object.flash * duration;
+    let background = style.background.unwrap_or(scene.background);
+    let mut stats = Stats::default();
+
+    // The object layer at the flash, which also tells which points are visible.
+    let mut stills = 0;
+    let flash_views: Vec<Vec<Option<SurfelView>>> = scene
+        .objects
+        .iter()
+        .map(|object| views_at(scene, object, flash))
+        .collect();
+    // Footprints of still objects, then of moving ones: with `object.draw` off only the moving
+    // ones are left out of the picture, but all of them hide points.
+    let mut object_footprints = Vec::new();
+    for still in [true, false] {
+        for (views, object_plan) in flash_views.iter().zip(&plan.objects) {
+            if (object_plan.motion == ObjectMotion::Still) != still {
+                continue;
+            }
+            for view in views {
+                let result = match view {
+                    Some(v) => static_footprint(camera, &recoloured(v, style.object.colour)),
+                    None => Err(Cull::BehindNear),
+                };
+                stats.culled.keep(result, &mut object_footprints);
+            }
+        }
+        if still {
+            stills = object_footprints.len();
+        }
+    }
+    let target = Target::new(width, height);
+    let (object_layer, raster) = rasterize(&object_footprints, &target, &TimeBins::INSTANT);
+    stats.add_raster(&raster);
+    let drawn_layer = if style.object.draw {
+        object_layer.clone()
+    } else {
+        let (layer, raster) = rasterize(&object_footprints[..stills], &target, &TimeBins::INSTANT);
+        stats.add_raster(&raster);
+        layer
+    }
+    .with_opacity(style.object.opacity as f32);
+
+    let trail = &style.trail;
+    let window = before_flash(shutter, flash, trail.offset, trail.length);
+    let copies = copy_windows(window, trail.copies, trail.duty);
+    let gradient = trail.fade < 1.0
+        || matches!(
+            trail.colour,
+            TrailColour::Ramp {
+                by: RampBy::Time,
+                ..
+            }
+        );
+    let max_piece = if gradient {
+        (window[1] - window[0]) / GRADIENT_PIECES
+    } else {
+        f64::INFINITY
+    };
+    let fastest = plan
+        .objects
+        .iter()
+        .filter_map(|o| match o.motion {
+            ObjectMotion::Moving { path_px, .. } => Some(path_px),
+            ObjectMotion::Still => None,
+        })
+        .fold(0.0, f64::max);
+
+    let mut trail_footprints = Vec::new();
+    let mut lines = Vec::new();
+    for ((object, object_plan), views) in scene.objects.iter().zip(&plan.objects).zip(&flash_views)
+    {
+        let ObjectMotion::Moving { segments, .. } = &object_plan.motion else {
+            continue;
+        };
+        let emits: Vec<bool> = views
+            .iter()
+            .map(|view| {
+                let Some(view) = view else { return false };
+                match trail.emitters {
+                    Emitters::All => true,
+                    _ if !(view.facing > 0.0) => {
+                        stats.hint.back_facing += 1;
+                        false
+                    }
+                    Emitters::Visible if is_hidden(&view.splat, &object_layer) => {
+                        stats.hint.hidden += 1;
+                        false
+                    }
+                    _ => true,
+                }
+            })
+            .collect();
+        stats.hint.emitting += emits.iter().filter(|&&e| e).count();
+        let emits: Vec<bool> = emits
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| e && is_sampled(i, trail.density))
+            .collect();
+        if trail.draw && window[1] > window[0] {
+            let (footprints, culled) = object_trails(
+                scene, style, object, segments, &copies, window, max_piece, fastest, &emits,
+            );
+            stats.hint.trail_splats += footprints.len();
+            stats.hint.trail_culled.add(&culled);
+            trail_footprints.extend(footprints);
+        }
+        if style.speed_lines.draw {
+            lines.extend(object_speed_lines(
+                scene,
+                &style.speed_lines,
+                object,
+                segments,
+                flash,
+                views,
+                &emits,
+            ));
+        }
+    }
+    let lines = pick_lines(lines, &style.speed_lines);
+    stats.hint.speed_lines = lines.len();
+    let look = &style.speed_lines;
+    let line_layer = speed_lines::draw(
+        &lines,
+        &LineLook {
+            width: look.width,
+            taper: look.taper,
+            fade: look.fade,
+            opacity: look.opacity,
+        },
+        width,
+        height,
+    );
+
+    let mut image = Framebuffer::filled(width, height, background);
+    let mut trail_target = Target {
+        texture: trail.texture.as_ref(),
+        ..target
+    };
+    match trail.composite {
+        Composite::Under => {
+            let (layer, raster) = draw_trails(&trail_footprints, &trail_target, trail);
+            stats.add_raster(&raster);
+            image = layer.over(&image);
+            line_layer.composite_over(&mut image.pixels);
+            image = drawn_layer.over(&image);
+        }
+        Composite::Merged => {
+            line_layer.composite_over(&mut image.pixels);
+            image = drawn_layer.over(&image);
+            trail_target.occluder = Some(&drawn_layer.front_depth);
+            let (layer, raster) = draw_trails(&trail_footprints, &trail_target, trail);
+            stats.add_raster(&raster);
+            image = layer.over(&image);
+        }
+    }
+    Render { image, stats }
+}
+
+/// Rasterize trail footprints. Alpha-blended trails of whole surfaces are composited in bins of
+/// their copies' time, as `blur` does, so that a surface sliding past a pixel covers it for the
+/// time it takes. A sparse trail (density below one) is a set of separate strokes rather than a
+/// surface: its strokes are composited as layers, each covering by its own weight. Additive trails
+/// need no bins.
+fn draw_trails(footprints: &[Footprint], target: &Target, trail: &Trail) -> (Layer, RasterStats) {
+    if trail.blend == Blend::Alpha && trail.density >= 1.0 {
+        rasterize(footprints, target, &TimeBins::<TIME_BINS>::over(&COPY_TIME))
+    } else {
+        rasterize(footprints, target, &TimeBins::INSTANT)
+    }
+}
+
+/// Every surfel of `object` seen at time `t`.
+fn views_at(scene: &Scene, object: &Object, t: f64) -> Vec<Option<SurfelView>> {
+    let instant = Instant::new(&scene.camera, &object.motion.pose_at(t));
+    object
+        .surfels
+        .par_iter()
+        .map(|s| view_surfel(&scene.camera, &instant, &scene.lighting, s))
+        .collect()
+}
+
+/// `view` with its colour replaced by `colour`, when given.
+fn recoloured(view: &SurfelView, colour: Option<[f32; 3]>) -> SurfelView {
+    let mut view = *view;
+    if let Some(c) = colour {
+        view.splat.colour = c;
+    }
+    view
+}
+
+/// Whether a splat lies behind the visible surface of `layer` at the pixel under its centre.
+/// Off-screen centres count as visible: there is nothing to test them against.
+fn is_hidden(splat: &ScreenSplat, layer: &Layer) -> bool {
+    let (x, y) = (splat.center.x.floor(), splat.center.y.floor());
+    if !(x >= 0.0 && y >= 0.0 && x < f64::from(layer.width) && y < f64::from(layer.height)) {
+        return false;
+    }
+    let front = layer.front_depth[y as usize * layer.width as usize + x as usize];
+    let offset = DVec2::new(x + 0.5, y + 0.5) - splat.center;
+    let depth = splat.depth + splat.depth_gradient.dot(offset);
+    depth > f64::from(front) + splat.depth_tolerance
+}
+
+/// The window of `length` (a share of the exposure) ending `offset` before the flash, clipped to
+/// the exposure; empty (start = end) when nothing of it is left.
+fn before_flash(shutter: &Shutter, flash: f64, offset: f64, length: f64) -> Window {
+    let duration = shutter.duration();
+    let end = (flash - offset * duration).clamp(shutter.open, shutter.close);
+    let start = (flash - (offset + length) * duration).clamp(shutter.open, end);
+    [start, end]
+}
+
+/// `window` cut into `copies` equal slots, each drawn over its last `duty` share.
+fn copy_windows([start, end]: Window, copies: u32, duty: f64) -> Vec<Window> {
+    let slot = (end - start) / f64::from(copies);
+    (1..=copies)
+        .map(|k| {
+            let slot_end = start + slot * f64::from(k);
+            [slot_end - slot * duty, slot_end]
+        })
+        .collect()
+}
+
+/// Times cutting `window` at the plan's sub-segment ends (so trails bend along arcs as the blur's
+/// ellipses do) and into pieces no longer than `max_piece`.
+fn times_within(segments: &[[f64; 2]], [start, end]: Window, max_piece: f64) -> Vec<f64> {
+    let mut cuts = vec![start];
+    cuts.extend(
+        segments
+            .iter()
+            .map(|s| s[1])
+            .filter(|&t| t > start && t < end),
+    );
+    cuts.push(end);
+    let mut times = vec![start];
+    for pair in cuts.windows(2) {
+        let k = ((pair[1] - pair[0]) / max_piece).ceil().max(1.0) as usize;
+        times.extend((1..=k).map(|i| pair[0] + (pair[1] - pair[0]) * i as f64 / k as f64));
+    }
+    times
+}
+
+/// The trail splats of one moving object over its copy windows, and what was left out.
+#[allow(clippy::too_many_arguments)]
+fn object_trails(
+    scene: &Scene,
+    style: &Style,
+    object: &Object,
+    segments: &[[f64; 2]],
+    copies: &[Window],
+    window: Window,
+    max_piece: f64,
+    fastest_px: f64,
+    emits: &[bool],
+) -> (Vec<Footprint>, Culled) {
+    let camera = &scene.camera;
+    let mut times = Vec::new();
+    let mut pieces = Vec::new();
+    for &copy in copies {
+        let copy_times = times_within(segments, copy, max_piece);
+        let first = times.len();
+        let span = copy[1] - copy[0];
+        let chained = copy_times.len() > 2;
+        for (i, pair) in copy_times.windows(2).enumerate() {
+            pieces.push(Piece {
+                real: [pair[0], pair[1]],
+                local: [(pair[0] - copy[0]) / span, (pair[1] - copy[0]) / span].map(|t| {
+                    if t.is_finite() {
+                        t.clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    }
+                }),
+                ends: [first + i, first + i + 1],
+                chained,
+            });
+        }
+        times.extend(copy_times);
+    }
+    let instants: Vec<Instant> = times
+        .iter()
+        .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
+        .collect();
+    let per_surfel: Vec<(Vec<Footprint>, Culled)> = object
+        .surfels
+        .par_iter()
+        .zip(emits)
+        .map(|(surfel, &emits)| {
+            let (mut kept, mut culled) = (Vec::new(), Culled::default());
+            if !emits {
+                return (kept, culled);
+            }
+            let area_scale = style.trail.width * style.trail.width;
+            let views: Vec<Option<SurfelView>> = instants
+                .iter()
+                .map(|instant| {
+                    let mut view = view_surfel(camera, instant, &scene.lighting, surfel)?;
+                    view.splat.covariance = view.splat.covariance.scaled(area_scale);
+                    view.splat.weight *= area_scale;
+                    Some(view)
+                })
+                .collect();
+            for piece in &pieces {
+                let [ia, ib] = piece.ends;
+                let result = match (&views[ia], &views[ib]) {
+                    (Some(a), Some(b)) => {
+                        let [v0, v1] = piece.local;
+                        motion_ellipse(
+                            &COPY_TIME,
+                            a,
+                            b,
+                            piece.local,
+                            &COPY_TIME.moments(v0, v1),
+                            piece.chained,
+                        )
+                        .map(|ellipse| {
+                            let normals = [&instants[ia], &instants[ib]]
+                                .map(|instant| instant.world_normal(surfel.normal));
+                            styled(
+                                ellipse, style, scene, a, b, normals, piece, window, fastest_px,
+                            )
+                        })
+                        .and_then(|e| {
+                            e.footprint(camera.width, camera.height)
+                                .map_err(Cull::Raster)
+                        })
+                    }
+                    _ => Err(Cull::BehindNear),
+                };
+                culled.keep(result, &mut kept);
+            }
+            (kept, culled)
+        })
+        .collect();
+    let mut footprints = Vec::new();
+    let mut culled = Culled::default();
+    for (kept, c) in per_surfel {
+        footprints.extend(kept);
+        culled.add(&c);
+    }
+    (footprints, culled)
+}
+
+/// A motion ellipse dressed as a trail splat: colour from the style's source, weight scaled by
+/// intensity, fade, N·L and N·V (Guan & Mueller §4), the style's texture and blending.
+#[allow(clippy::too_many_arguments)]
+fn styled(
+    mut ellipse: ScreenSplat,
+    style: &Style,
+    scene: &Scene,
+    a: &SurfelView,
+    b: &SurfelView,
+    normals: [glam::DVec3; 2],
+    piece: &Piece,
+    [start, end]: Window,
+    fastest_px: f64,
+) -> ScreenSplat {
+    let trail = &style.trail;
+    let duration = scene.shutter.duration();
+    // Where along the trail the piece lies: 0 at its oldest end, 1 at its newest.
+    let along = if end > start {
+        (0.5 * (piece.real[0] + piece.real[1]) - start) / (end - start)
+    } else {
+        1.0
+    };
+    if let TrailColour::Ramp {
+        stops,
+        by,
+        speed_range,
+    } = &trail.colour
+    {
+        let u = match by {
+            RampBy::Time => along,
+            RampBy::Speed => {
+                let [slow, fast] = speed_range.unwrap_or([0.0, fastest_px]);
+                let exposures = (piece.real[1] - piece.real[0]) / duration;
+                let speed = a.splat.center.distance(b.splat.center) / exposures;
+                (speed - slow) / (fast - slow)
+            }
+        };
+        ellipse.colour = ramp_colour(stops, u);
+    }
+    let mut scale = trail.intensity * (trail.fade + (1.0 - trail.fade) * along) / trail.density;
+    if trail.modulate_light && scene.lighting.is_lit() && !scene.lighting.lights.is_empty() {
+        let normal = (normals[0] + normals[1]).normalize_or_zero();
+        scale *= scene.lighting.direct(normal).min(1.0);
+    }
+    if trail.modulate_view {
+        scale *= (0.5 * (a.facing + b.facing)).max(0.0);
+    }
+    ellipse.weight *= scale;
+    ellipse.profile = trail.profile;
+    ellipse.additive = trail.blend == Blend::Add;
+    ellipse
+}
+
+/// Candidate speed lines of one moving object: the projected paths of its emitting points that
+/// the style selects, each with the screen position of its newest end.
+fn object_speed_lines(
+    scene: &Scene,
+    look: &SpeedLines,
+    object: &Object,
+    segments: &[[f64; 2]],
+    flash: f64,
+    views: &[Option<SurfelView>],
+    emits: &[bool],
+) -> Vec<SpeedLine> {
+    let camera = &scene.camera;
+    let window = before_flash(&scene.shutter, flash, look.offset, look.length);
+    if !(window[1] > window[0]) {
+        return Vec::new();
+    }
+    let times = times_within(
+        segments,
+        window,
+        (window[1] - window[0]) / LINE_SAMPLES as f64,
+    );
+    let instants: Vec<Instant> = times
+        .iter()
+        .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
+        .collect();
+    let candidates: Vec<usize> = (0..object.surfels.len())
+        .filter(|&i| {
+            emits[i]
+                && views[i].is_some_and(|v| match look.select {
+                    Select::Silhouette => v.facing < SILHOUETTE_COSINE,
+                    Select::Sample => true,
+                })
+        })
+        .collect();
+    candidates
+        .par_iter()
+        .filter_map(|&i| {
+            let points: Vec<DVec2> = instants
+                .iter()
+                .filter_map(|instant| {
+                    view_surfel(camera, instant, &scene.lighting, &object.surfels[i])
+                        .map(|v| v.splat.center)
+                })
+                .collect();
+            (points.len() == instants.len()).then_some(SpeedLine {
+                points,
+                colour: look.colour,
+            })
+        })
+        .collect()
+}
+
+/// At most `look.count` lines whose newest ends are at least `look.spacing` px apart, picked in
+/// an order that is scattered but fixed, so that the same scene always gets the same lines.
+fn pick_lines(mut lines: Vec<SpeedLine>, look: &SpeedLines) -> Vec<SpeedLine> {
+    let key = |line: &SpeedLine| {
+        let end = line.points.last().copied().unwrap_or_default();
+        scatter(end.x.to_bits() ^ end.y.to_bits().rotate_left(32))
+    };
+    lines.sort_by_cached_key(key);
+    let cell = look.spacing.max(1.0);
+    let mut taken: std::collections::HashMap<(i64, i64), Vec<DVec2>> =
+        std::collections::HashMap::new();
+    let mut picked = Vec::new();
+    for line in lines {
+        if picked.len() >= look.count as usize {
+            break;
+        }
+        let Some(&end) = line.points.last() else {
+            continue;
+        };
+        let (cx, cy) = ((end.x / cell).floor() as i64, (end.y / cell).floor() as i64);
+        let crowded = (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                taken
+                    .get(&(cx + dx, cy + dy))
+                    .is_some_and(|ends| ends.iter().any(|e| e.distance(end) < look.spacing))
+            })
+        });
+        if !crowded {
+            taken.entry((cx, cy)).or_default().push(end);
+            picked.push(line);
+        }
+    }
+    picked
+}
+
+/// Whether point `index` is among a `density` share of points, chosen scattered but fixed.
+fn is_sampled(index: usize, density: f64) -> bool {
+    density >= 1.0 || (scatter(index as u64) as f64) < density * u64::MAX as f64
+}
+
+/// A fixed bijective scramble of 64 bits (SplitMix64's finalizer), for a scattered order.
+fn scatter(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}

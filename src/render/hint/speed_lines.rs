@@ -1,0 +1,1092 @@
+//! Speed lines: tapered, fading, anti-aliased ribbons trailing a moving object.
+//!
+//! Each [`SpeedLine`] is a polyline from its oldest point to its newest (at the
+//! object). Following Schmid et al. 2010, it is drawn thick and opaque at the
+//! object, thinning and fading towards the oldest end.
+//!
+//! Pipeline, per line: validate → clip the centre line → build ONE ribbon
+//! outline → coverage from tiny-skia → opacity by arc length → colour and
+//! "over" in `f32`.
+//!
+//! * Geometry. Width and opacity go linearly with arc length `s` along the
+//!   original (unclipped) centre line. Every segment is offset by the local
+//!   half width along its own normal. The outer side of each bend gets a
+//!   round join (no miter spikes, even when the line turns back on itself).
+//!   The inner side goes through the vertex, like Skia's stroker. Under the
+//!   non-zero rule the overlap there is filled once, not twice. The newest end
+//!   gets a round cap, so the trail meets the object smoothly. The oldest end
+//!   is butt: it is faded there, and with `taper = 0` it is a point anyway. A
+//!   tapered ribbon is offset along segment normals rather than along the true
+//!   envelope of its varying-width disc. The error is of order (dh/ds)², which
+//!   is negligible for speed-line tapers.
+//! * Coverage. The whole outline of a line is filled once, with the non-zero
+//!   rule, into an 8-bit tiny-skia [`Mask`] as large as the line's bounding
+//!   box. So a line never doubles its alpha at its joints or where it crosses
+//!   itself.
+//! * Opacity. Each covered pixel takes the arc length of its nearest point on
+//!   the centre line. The simpler design is a tiny-skia `LinearGradient` from
+//!   the oldest to the newest point. But it follows the chord, not the line. On
+//!   a strongly curved line it fades across the line instead of along it. On a
+//!   nearly closed loop the chord is nearly zero. It also rounds opacity to
+//!   8 bits.
+//! * Colour. tiny-skia blends 8-bit premultiplied bytes. Linear colours
+//!   stored in 8 bits band in the darks. Colours encoded as sRGB would make
+//!   tiny-skia blend overlapping lines in sRGB, not in linear light. So tiny-skia
+//!   gives coverage only. Here, `α = coverage × opacity` and `colour × α` are
+//!   composited "over" the earlier lines in `f32`. The output is linear and
+//!   premultiplied. Later lines in the slice go over earlier ones. The only
+//!   8-bit quantity left is anti-aliased coverage.
+//! * Robustness. A line is skipped when a coordinate or colour is not finite,
+//!   or it has fewer than two distinct points, or its length overflows `f64`.
+//!   Centre lines are clipped in `f64` to the image plus a margin wider than
+//!   the ribbon. So points at ±1e9 px draw their visible part, and tiny-skia
+//!   only sees small coordinates. Bad geometry draws nothing and never panics.
+
+use glam::DVec2;
+use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
+
+/// One speed line: the projected path of a point, in pixels (x right, y down,
+/// pixel centres at +0.5), from its oldest point to its newest (the newest end
+/// is at the object).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpeedLine {
+    /// Centre line in pixels, oldest point first, newest (at the object) last.
+    pub points: Vec<DVec2>,
+    /// Colour in linear RGB.
+    pub colour: [f32; 3],
+}
+
+/// How speed lines look.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LineLook {
+    /// Stroke width in pixels at the newest end (> 0). Lines are not drawn when
+    /// it is not positive or is NaN. Widths above 65536 px count as 65536 px.
+    pub width: f64,
+    /// Width at the oldest end as a fraction of `width`, 0..=1 (0 = a point).
+    pub taper: f64,
+    /// Opacity at the oldest end as a fraction of the newest end's, 0..=1.
+    pub fade: f64,
+    /// Opacity at the newest end, 0..=1.
+    pub opacity: f64,
+}
+
+/// Lines drawn into a layer of linear, premultiplied RGBA
+/// (alpha = coverage × opacity).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LineLayer {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major `width × height` pixels: linear premultiplied RGB, then alpha.
+    pub pixels: Vec<[f32; 4]>,
+}
+
+/// Widest stroke honoured, in pixels. It keeps the coordinates given to
+/// tiny-skia (image size plus a margin of about one width) accurate in `f32`.
+const MAX_WIDTH_PX: f64 = 65536.0;
+
+/// Consecutive centre-line points closer than this are merged.
+const MIN_SEGMENT_PX: f64 = 1e-6;
+
+/// Largest gap between a round join or cap and its polygon, in pixels.
+const ARC_TOLERANCE_PX: f64 = 0.02;
+
+/// Most polygon edges for half of a round join or cap.
+const MAX_ARC_STEPS: f64 = 64.0;
+
+/// How far beyond the half width a pixel centre can be and still be covered:
+/// half a pixel diagonal (≈ 0.71), rounded up.
+const AA_REACH_PX: f64 = 1.0;
+
+/// Draws `lines` into a new `width × height` layer, in slice order, each
+/// composited "over" the ones before it.
+///
+/// Bad lines are skipped (see the module docs). A zero-sized image gives an
+/// empty layer. If the layer cannot be allocated, the result is an empty
+/// 0 × 0 layer.
+#[must_use]
+pub fn draw(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> LineLayer {
+    let mut layer = LineLayer::transparent(width, height);
+    let Some(style) = Style::new(look) else {
+        return layer;
+    };
+    if layer.pixels.is_empty() {
+        return layer;
+    }
+    for line in lines {
+        layer.add_line(line, &style);
+    }
+    layer
+}
+
+impl LineLayer {
+    /// Composites the layer over `below` (linear RGB, row-major
+    /// `width × height`): `out = src + (1 − α)·below`.
+    ///
+    /// If the lengths differ, only the pixels the two have in common are
+    /// composited.
+    pub fn composite_over(&self, below: &mut [[f32; 3]]) {
+        for (dst, src) in below.iter_mut().zip(&self.pixels) {
+            let keep = 1.0 - src[3];
+            for (d, s) in dst.iter_mut().zip(src) {
+                *d = s + keep * *d;
+            }
+        }
+    }
+
+    /// A fully transparent layer, or an empty 0 × 0 one if it cannot be
+    /// allocated.
+    fn transparent(width: u32, height: u32) -> Self {
+        let empty = LineLayer {
+            width: 0,
+            height: 0,
+            pixels: Vec::new(),
+        };
+        let Some(count) = (width as usize).checked_mul(height as usize) else {
+            return empty;
+        };
+        let mut pixels = Vec::new();
+        if pixels.try_reserve_exact(count).is_err() {
+            return empty;
+        }
+        pixels.resize(count, [0.0; 4]);
+        LineLayer {
+            width,
+            height,
+            pixels,
+        }
+    }
+
+    /// Draws one line over the layer's contents; skips it if it is invalid or
+    /// misses the image.
+    fn add_line(&mut self, line: &SpeedLine, style: &Style) {
+        if !line.colour.iter().all(|c| c.is_finite()) {
+            return;
+        }
+        let Some(centre) = centre_line(&line.points) else {
+            return;
+        };
+        let length = centre[centre.len() - 1].s;
+
+        // Anything dropped by the clip lies at least `AA_REACH_PX + 1` outside
+        // the image, even after widening by the half width.
+        let reach = style.half_width + AA_REACH_PX;
+        let size = DVec2::new(f64::from(self.width), f64::from(self.height));
+        let runs = clip_runs(&centre, DVec2::splat(-reach - 1.0), size + reach + 1.0);
+
+        // The line's bounding box, in whole pixels, inside the image.
+        let (mut lo, mut hi) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+        for node in runs.iter().flat_map(|run| &run.nodes) {
+            lo = lo.min(node.p);
+            hi = hi.max(node.p);
+        }
+        let lo = (lo - reach).floor().max(DVec2::ZERO);
+        let hi = (hi + reach).ceil().min(size);
+        if !(lo.x < hi.x && lo.y < hi.y) {
+            return;
+        }
+        // Exact: both are whole numbers in 0..=u32::MAX.
+        let (x0, y0) = (lo.x as usize, lo.y as usize);
+        let (box_width, box_height) = ((hi.x - lo.x) as u32, (hi.y - lo.y) as u32);
+
+        // Coverage of the whole line, filled once.
+        let mut builder = PathBuilder::new();
+        for run in &runs {
+            let outline = ribbon_outline(run, style, length);
+            let mut points = outline.iter().map(|&p| p - lo);
+            if let Some(first) = points.next() {
+                builder.move_to(first.x as f32, first.y as f32);
+                for p in points {
+                    builder.line_to(p.x as f32, p.y as f32);
+                }
+                builder.close();
+            }
+        }
+        let (Some(path), Some(mut mask)) = (builder.finish(), Mask::new(box_width, box_height))
+        else {
+            return;
+        };
+        mask.fill_path(&path, FillRule::Winding, true, Transform::identity());
+
+        // Opacity by arc length, then colour and "over", one row at a time.
+        let segments = Segment::all(&runs, lo);
+        let mut nearest = NearestSweep::new(&segments, box_width as usize, reach);
+        let coverage_rows = mask.data().chunks_exact(box_width as usize);
+        for (row, coverage) in coverage_rows.enumerate() {
+            let nearest_s = nearest.row(row, coverage);
+            let start = (y0 + row) * self.width as usize + x0;
+            let pixels = &mut self.pixels[start..start + coverage.len()];
+            for ((px, &cov), &(d2, s)) in pixels.iter_mut().zip(coverage).zip(nearest_s) {
+                if cov == 0 || !d2.is_finite() {
+                    continue;
+                }
+                let alpha = (f64::from(cov) / 255.0 * style.opacity_at(s / length)) as f32;
+                let keep = 1.0 - alpha;
+                for (c, &colour) in px.iter_mut().zip(&line.colour) {
+                    *c = colour * alpha + keep * *c;
+                }
+                px[3] = alpha + keep * px[3];
+            }
+        }
+    }
+}
+
+/// A [`LineLook`] with its values checked and clamped.
+struct Style {
+    /// Half the stroke width at the newest end, in pixels, finite and > 0.
+    half_width: f64,
+    /// In 0..=1.
+    taper: f64,
+    /// In 0..=1.
+    fade: f64,
+    /// In 0..=1.
+    opacity: f64,
+}
+
+impl Style {
+    /// `None` when nothing would be drawn: the width is not positive or the
+    /// opacity is zero. NaN fractions count as 0.
+    fn new(look: &LineLook) -> Option<Self> {
+        let opacity = unit(look.opacity);
+        let positive = look.width > 0.0; // false for NaN
+        if !positive || opacity == 0.0 {
+            return None;
+        }
+        Some(Style {
+            half_width: 0.5 * look.width.min(MAX_WIDTH_PX),
+            taper: unit(look.taper),
+            fade: unit(look.fade),
+            opacity,
+        })
+    }
+
+    /// Half width at fraction `u` of the arc length (0 = oldest, 1 = newest).
+    fn half_width_at(&self, u: f64) -> f64 {
+        self.half_width * (self.taper + (1.0 - self.taper) * u)
+    }
+
+    /// Opacity at fraction `u` of the arc length (0 = oldest, 1 = newest).
+    fn opacity_at(&self, u: f64) -> f64 {
+        self.opacity * (self.fade + (1.0 - self.fade) * u)
+    }
+}
+
+/// Clamps to 0..=1, with NaN giving 0.
+fn unit(x: f64) -> f64 {
+    if x > 0.0 {
+        x.min(1.0)
+    } else {
+        0.0
+    }
+}
+
+/// A centre-line point and its arc length from the oldest point.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    p: DVec2,
+    s: f64,
+}
+
+/// The centre line with arc lengths. `None` if a coordinate is not finite,
+/// there are fewer than two distinct points, or the length overflows.
+fn centre_line(points: &[DVec2]) -> Option<Vec<Node>> {
+    if !points.iter().all(|p| p.is_finite()) {
+        return None;
+    }
+    let mut nodes: Vec<Node> = Vec::with_capacity(points.len());
+    for &p in points {
+        match nodes.last() {
+            None => nodes.push(Node { p, s: 0.0 }),
+            Some(last) => {
+                let step = last.p.distance(p);
+                if step >= MIN_SEGMENT_PX {
+                    nodes.push(Node {
+                        p,
+                        s: last.s + step,
+                    });
+                }
+            }
+        }
+    }
+    let length = nodes.last()?.s;
+    (nodes.len() >= 2 && length.is_finite()).then_some(nodes)
+}
+
+/// A piece of the centre line inside the clip rectangle, with at least two
+/// distinct points.
+struct Run {
+    nodes: Vec<Node>,
+    /// Whether the run ends at the line's newest point (which gets the round cap).
+    ends_at_newest: bool,
+}
+
+/// Splits the centre line into the runs inside the rectangle `lo..hi`,
+/// keeping each point's arc length on the whole line.
+fn clip_runs(centre: &[Node], lo: DVec2, hi: DVec2) -> Vec<Run> {
+    let mut runs = Vec::new();
+    let mut current = Vec::new();
+    for pair in centre.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        let Some((t0, t1)) = clip_segment(a.p, b.p, lo, hi) else {
+            end_run(&mut runs, &mut current, false);
+            continue;
+        };
+        if t0 > 0.0 {
+            end_run(&mut runs, &mut current, false);
+        }
+        push_distinct(&mut current, lerp_node(a, b, t0));
+        push_distinct(&mut current, lerp_node(a, b, t1));
+        if t1 < 1.0 {
+            end_run(&mut runs, &mut current, false);
+        }
+    }
+    end_run(&mut runs, &mut current, true);
+    runs
+}
+
+/// Moves `current` into `runs` if it has a segment, else drops it.
+fn end_run(runs: &mut Vec<Run>, current: &mut Vec<Node>, ends_at_newest: bool) {
+    let nodes = std::mem::take(current);
+    if nodes.len() >= 2 {
+        runs.push(Run {
+            nodes,
+            ends_at_newest,
+        });
+    }
+}
+
+/// Appends `node` unless it repeats the last point.
+fn push_distinct(nodes: &mut Vec<Node>, node: Node) {
+    if nodes
+        .last()
+        .is_none_or(|last| last.p.distance(node.p) >= MIN_SEGMENT_PX)
+    {
+        nodes.push(node);
+    }
+}
+
+/// The point at parameter `t` of the segment `a → b`, exact at the ends.
+fn lerp_node(a: Node, b: Node, t: f64) -> Node {
+    if t <= 0.0 {
+        a
+    } else if t >= 1.0 {
+        b
+    } else {
+        Node {
+            p: a.p.lerp(b.p, t),
+            s: a.s + (b.s - a.s) * t,
+        }
+    }
+}
+
+/// Liang–Barsky: the parameter range of `a → b` inside the rectangle `lo..hi`.
+fn clip_segment(a: DVec2, b: DVec2, lo: DVec2, hi: DVec2) -> Option<(f64, f64)> {
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
+    // Each pair is (p, q) with "inside" meaning p·t <= q.
+    for (p, q) in [
+        (-d.x, a.x - lo.x),
+        (d.x, hi.x - a.x),
+        (-d.y, a.y - lo.y),
+        (d.y, hi.y - a.y),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else if p < 0.0 {
+            t0 = t0.max(q / p);
+        } else {
+            t1 = t1.min(q / p);
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// The closed outline of one run's ribbon: the `+normal` side from oldest to
+/// newest, the cap, the `−normal` side back.
+fn ribbon_outline(run: &Run, style: &Style, length: f64) -> Vec<DVec2> {
+    let p: Vec<DVec2> = run.nodes.iter().map(|n| n.p).collect();
+    let h: Vec<f64> = run
+        .nodes
+        .iter()
+        .map(|n| style.half_width_at(n.s / length))
+        .collect();
+    let d: Vec<DVec2> = p
+        .windows(2)
+        .map(|w| (w[1] - w[0]).normalize_or_zero())
+        .collect();
+    let n: Vec<DVec2> = d.iter().map(|d| d.perp()).collect();
+    let last = p.len() - 1;
+
+    let mut out = Vec::with_capacity(4 * p.len() + 16);
+    out.push(p[0] + h[0] * n[0]);
+    for i in 1..last {
+        let inner = d[i - 1].perp_dot(d[i]) > 0.0;
+        join(&mut out, p[i], h[i], n[i - 1], n[i], d[i - 1], inner);
+    }
+    out.push(p[last] + h[last] * n[last - 1]);
+    if run.ends_at_newest {
+        round_arc(
+            &mut out,
+            p[last],
+            h[last],
+            n[last - 1],
+            d[last - 1],
+            -n[last - 1],
+        );
+    } else {
+        out.push(p[last] - h[last] * n[last - 1]);
+    }
+    for i in (1..last).rev() {
+        let inner = d[i - 1].perp_dot(d[i]) < 0.0;
+        join(&mut out, p[i], h[i], -n[i], -n[i - 1], -d[i], inner);
+    }
+    out.push(p[0] - h[0] * n[0]);
+    out
+}
+
+/// Appends one side's join at vertex `p`, going from the offset direction
+/// `from` (unit) to `to`, with `towards` the direction of travel into the
+/// vertex. The inner side passes through the vertex; the outer side is round.
+fn join(
+    out: &mut Vec<DVec2>,
+    p: DVec2,
+    h: f64,
+    from: DVec2,
+    to: DVec2,
+    towards: DVec2,
+    inner: bool,
+) {
+    out.push(p + h * from);
+    if inner {
+        out.push(p);
+        out.push(p + h * to);
+    } else {
+        // When the line turns straight back, `from + to` vanishes and the
+        // round end bulges forwards, along the travel direction.
+        let middle = (from + to).try_normalize().unwrap_or(towards);
+        round_arc(out, p, h, from, middle, to);
+    }
+}
+
+/// Appends the arc of radius `h` around `centre` from direction `from`
+/// through `middle` to `to` (all unit; each half under a half turn), without
+/// its first point.
+fn round_arc(out: &mut Vec<DVec2>, centre: DVec2, h: f64, from: DVec2, middle: DVec2, to: DVec2) {
+    // Sagitta h·(1 − cos(step/2)) equals the tolerance.
+    let step = if h > ARC_TOLERANCE_PX {
+        2.0 * (1.0 - ARC_TOLERANCE_PX / h).acos()
+    } else {
+        std::f64::consts::PI
+    };
+    for (a, b) in [(from, middle), (middle, to)] {
+        let angle = a.perp_dot(b).atan2(a.dot(b));
+        let steps = (angle.abs() / step).ceil().clamp(1.0, MAX_ARC_STEPS);
+        // `steps` is a whole number in 1..=64.
+        let count = steps as u32;
+        for k in 1..count {
+            let turn = DVec2::from_angle(angle * f64::from(k) / steps);
+            out.push(centre + h * turn.rotate(a));
+        }
+        out.push(centre + h * b);
+    }
+}
+
+/// A centre-line segment in mask coordinates, with arc lengths at its ends.
+struct Segment {
+    a: DVec2,
+    b: DVec2,
+    s_a: f64,
+    s_b: f64,
+}
+
+impl Segment {
+    /// All segments of `runs`, shifted by `-origin`, sorted by top edge.
+    fn all(runs: &[Run], origin: DVec2) -> Vec<Segment> {
+        let mut segments: Vec<Segment> = runs
+            .iter()
+            .flat_map(|run| run.nodes.windows(2))
+            .map(|w| Segment {
+                a: w[0].p - origin,
+                b: w[1].p - origin,
+                s_a: w[0].s,
+                s_b: w[1].s,
+            })
+            .collect();
+        segments.sort_by(|x, y| x.top().total_cmp(&y.top()));
+        segments
+    }
+
+    fn top(&self) -> f64 {
+        self.a.y.min(self.b.y)
+    }
+
+    fn bottom(&self) -> f64 {
+        self.a.y.max(self.b.y)
+    }
+
+    /// Squared distance from `q` to the segment, and the arc length there.
+    fn nearest(&self, q: DVec2) -> (f64, f64) {
+        let d = self.b - self.a;
+        let t = ((q - self.a).dot(d) / d.length_squared()).clamp(0.0, 1.0);
+        let d2 = q.distance_squared(self.a + t * d);
+        (d2, self.s_a + t * (self.s_b - self.s_a))
+    }
+
+    /// An x range holding every point of the row `y` within `reach` of the
+    /// segment, or `None` if there is none.
+    fn row_span(&self, y: f64, reach: f64) -> Option<(f64, f64)> {
+        let d = self.b - self.a;
+        let (t0, t1) = if d.y.abs() < MIN_SEGMENT_PX {
+            if (self.a.y - y).abs() > reach {
+                return None;
+            }
+            (0.0, 1.0)
+        } else {
+            let ta = (y - reach - self.a.y) / d.y;
+            let tb = (y + reach - self.a.y) / d.y;
+            (ta.min(tb).max(0.0), ta.max(tb).min(1.0))
+        };
+        let (xa, xb) = (self.a.x + t0 * d.x, self.a.x + t1 * d.x);
+        (t0 <= t1).then(|| (xa.min(xb) - reach, xa.max(xb) + reach))
+    }
+}
+
+/// Finds, row by row, the nearest centre-line point of each covered pixel,
+/// looking only at segments whose `reach`-wide band crosses the row.
+struct NearestSweep<'a> {
+    segments: &'a [Segment],
+    reach: f64,
+    /// Next segment (by top edge) not yet active.
+    next: usize,
+    active: Vec<usize>,
+    /// Per column: squared distance and arc length of the nearest point.
+    best: Vec<(f64, f64)>,
+}
+
+impl<'a> NearestSweep<'a> {
+    fn new(segments: &'a [Segment], width: usize, reach: f64) -> Self {
+        NearestSweep {
+            segments,
+            reach,
+            next: 0,
+            active: Vec::new(),
+            best: vec![(f64::INFINITY, 0.0); width],
+        }
+    }
+
+    /// For row `row` (rows in increasing order), per column: the squared
+    /// distance and arc length of the nearest point, or an infinite distance
+    /// where `coverage` is 0 or no segment is within reach.
+    fn row(&mut self, row: usize, coverage: &[u8]) -> &[(f64, f64)] {
+        let y = row as f64 + 0.5;
+        let (segments, reach) = (self.segments, self.reach);
+        while let Some(segment) = segments.get(self.next) {
+            if segment.top() - reach > y {
+                break;
+            }
+            self.active.push(self.next);
+            self.next += 1;
+        }
+        self.active.retain(|&i| segments[i].bottom() + reach >= y);
+
+        self.best.fill((f64::INFINITY, 0.0));
+        let last_column = self.best.len() as f64 - 1.0;
+        for &i in &self.active {
+            let Some((x_lo, x_hi)) = segments[i].row_span(y, reach) else {
+                continue;
+            };
+            // Columns whose centre (column + 0.5) is in x_lo..=x_hi.
+            let (first, last) = (
+                (x_lo - 0.5).ceil().max(0.0),
+                (x_hi - 0.5).floor().min(last_column),
+            );
+            if first > last {
+                continue;
+            }
+            // Whole numbers inside 0..width.
+            let columns = first as usize..last as usize + 1;
+            let best = &mut self.best[columns.clone()];
+            for ((column, best), &cov) in columns.clone().zip(best).zip(&coverage[columns]) {
+                if cov == 0 {
+                    continue;
+                }
+                let found = segments[i].nearest(DVec2::new(column as f64 + 0.5, y));
+                if found.0 < best.0 {
+                    *best = found;
+                }
+            }
+        }
+        &self.best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
+
+    fn alpha(layer: &LineLayer, x: u32, y: u32) -> f32 {
+        layer.pixels[(y * layer.width + x) as usize][3]
+    }
+
+    fn column_sum(layer: &LineLayer, x: u32) -> f32 {
+        (0..layer.height).map(|y| alpha(layer, x, y)).sum()
+    }
+
+    fn column_peak(layer: &LineLayer, x: u32) -> f32 {
+        (0..layer.height)
+            .map(|y| alpha(layer, x, y))
+            .fold(0.0, f32::max)
+    }
+
+    /// The pixel containing `p`.
+    fn alpha_at(layer: &LineLayer, p: DVec2) -> f32 {
+        alpha(layer, p.x.floor() as u32, p.y.floor() as u32)
+    }
+
+    fn assert_sane(layer: &LineLayer) {
+        assert_eq!(
+            layer.pixels.len(),
+            layer.width as usize * layer.height as usize
+        );
+        for px in &layer.pixels {
+            assert!(px.iter().all(|c| c.is_finite()), "{px:?}");
+            assert!((0.0..=1.0 + 1e-6).contains(&px[3]), "{px:?}");
+        }
+    }
+
+    /// Distance from `q` to the polyline `points`.
+    fn distance_to_polyline(points: &[DVec2], q: DVec2) -> f64 {
+        points
+            .windows(2)
+            .map(|w| {
+                let d = w[1] - w[0];
+                let t = ((q - w[0]).dot(d) / d.length_squared()).clamp(0.0, 1.0);
+                q.distance(w[0] + t * d)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The brief's test line: x = 20 → 200 at y = 50.5, sampled at 10 points
+    /// so that it also goes through (straight) joins.
+    fn straight_line(colour: [f32; 3]) -> SpeedLine {
+        SpeedLine {
+            points: (0..10)
+                .map(|i| DVec2::new(20.0 + 20.0 * f64::from(i), 50.5))
+                .collect(),
+            colour,
+        }
+    }
+
+    const TAPERED: LineLook = LineLook {
+        width: 6.0,
+        taper: 0.25,
+        fade: 0.2,
+        opacity: 1.0,
+    };
+
+    /// Fraction of arc length at the centre of column `x` of `straight_line`.
+    fn straight_u(x: u32) -> f64 {
+        (f64::from(x) + 0.5 - 20.0) / 180.0
+    }
+
+    fn style(look: &LineLook) -> Style {
+        Style::new(look).unwrap()
+    }
+
+    // Tolerances: tiny-skia anti-aliases with 4 sub-scanlines per pixel, so a
+    // nearly horizontal edge's coverage of a pixel is a multiple of 1/4, off by
+    // at most 1/8 px per edge, and a column's sum by at most 1/4 (times the
+    // local opacity). Also the column's own width (taper) and opacity (fade)
+    // are a little below the newest end's, which is why a sum "≈ 6" is only
+    // within ~10 %.
+    #[test]
+    fn straight_line_has_the_right_width_opacity_extent_and_colour() {
+        let layer = draw(&[straight_line(WHITE)], &TAPERED, 240, 100);
+        assert_sane(&layer);
+        let s = style(&TAPERED);
+
+        // Near the newest end: width 6, opacity 1.
+        let x = 197;
+        let u = straight_u(x);
+        let sum = column_sum(&layer, x);
+        assert!((sum - 6.0).abs() < 0.6, "newest column sum {sum}");
+        let expected = 2.0 * s.half_width_at(u) * s.opacity_at(u);
+        assert!(
+            (f64::from(sum) - expected).abs() < 0.25,
+            "{sum} vs {expected}"
+        );
+        let peak = column_peak(&layer, x);
+        assert!((peak - 1.0).abs() < 0.03, "newest peak {peak}");
+        assert!((f64::from(peak) - s.opacity_at(u)).abs() < 0.005);
+        // The round cap reaches 2.6 px up and down at x = 201.5.
+        assert!(column_peak(&layer, 201) > 0.99, "no round cap");
+
+        // Near the oldest end: width 1.5, opacity 0.2. The brief's "sum ≈ 1.5"
+        // is the coverage; alpha is that times the local opacity.
+        let x = 22;
+        let u = straight_u(x);
+        let coverage = f64::from(column_sum(&layer, x)) / s.opacity_at(u);
+        assert!((coverage - 1.5).abs() < 0.25, "oldest coverage {coverage}");
+        assert!((coverage - 2.0 * s.half_width_at(u)).abs() < 0.25);
+        let peak = column_peak(&layer, x);
+        assert!((peak - 0.2).abs() < 0.015, "oldest peak {peak}");
+        assert!((f64::from(peak) - s.opacity_at(u)).abs() < 0.005);
+
+        // Nothing outside the ribbon's box (round cap to x = 203) + 2 px.
+        for y in 0..layer.height {
+            for x in 0..layer.width {
+                let (cx, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let inside = (18.0..=205.0).contains(&cx) && (45.5..=55.5).contains(&cy);
+                assert!(
+                    inside || alpha(&layer, x, y) == 0.0,
+                    "stray alpha at {x},{y}"
+                );
+            }
+        }
+        // Premultiplied white: every channel equals alpha.
+        for px in &layer.pixels {
+            assert!(px[..3].iter().all(|&c| (c - px[3]).abs() < 1e-6), "{px:?}");
+        }
+    }
+
+    #[test]
+    fn column_sums_decrease_from_newest_to_oldest() {
+        let layer = draw(&[straight_line(WHITE)], &TAPERED, 240, 100);
+        let sums: Vec<f32> = (22..=197)
+            .rev()
+            .step_by(15)
+            .map(|x| column_sum(&layer, x))
+            .collect();
+        for pair in sums.windows(2) {
+            assert!(pair[1] < pair[0], "{sums:?}");
+        }
+    }
+
+    #[test]
+    fn quarter_arc_is_covered_along_the_arc_not_across_the_chord() {
+        let (centre, radius) = (DVec2::new(120.0, 120.0), 100.0);
+        let at = |f: f64| centre + radius * DVec2::from_angle(-f * std::f64::consts::FRAC_PI_2);
+        let line = SpeedLine {
+            points: (0..32).map(|i| at(f64::from(i) / 31.0)).collect(),
+            colour: WHITE,
+        };
+        let layer = draw(&[line], &TAPERED, 240, 240);
+        assert_sane(&layer);
+        // From just past the butt oldest end to the newest end.
+        for i in 1..=40 {
+            let f = f64::from(i) / 40.0;
+            assert!(alpha_at(&layer, at(f)) > 0.15, "arc gap at f = {f}");
+        }
+        let (a, b) = (at(0.0), at(1.0));
+        for i in 1..10 {
+            let q = a.lerp(b, f64::from(i) / 10.0);
+            assert_eq!(alpha_at(&layer, q), 0.0, "chord covered at {q}");
+        }
+    }
+
+    /// On three quarters of a circle the chord's projection (what a linear
+    /// gradient would give) is far from the arc length: at a quarter of the
+    /// arc it is clamped to 0.
+    #[test]
+    fn fade_follows_arc_length_not_the_chord() {
+        let (centre, radius) = (DVec2::new(100.0, 100.0), 80.0);
+        let sweep = 1.5 * std::f64::consts::PI;
+        let at = |f: f64| centre + radius * DVec2::from_angle(f * sweep);
+        let line = SpeedLine {
+            points: (0..64).map(|i| at(f64::from(i) / 63.0)).collect(),
+            colour: WHITE,
+        };
+        let look = LineLook {
+            width: 8.0,
+            taper: 1.0,
+            fade: 0.0,
+            opacity: 1.0,
+        };
+        let layer = draw(&[line], &look, 200, 200);
+        for f in [0.1, 0.25, 0.5, 0.75, 0.9] {
+            let got = alpha_at(&layer, at(f));
+            assert!((f64::from(got) - f).abs() < 0.01, "f = {f}: alpha {got}");
+        }
+    }
+
+    #[test]
+    fn overlapping_lines_composite_over() {
+        let look = LineLook {
+            width: 6.0,
+            taper: 1.0,
+            fade: 1.0,
+            opacity: 0.6,
+        };
+        let red = SpeedLine {
+            points: vec![DVec2::new(10.0, 50.5), DVec2::new(90.0, 50.5)],
+            colour: [1.0, 0.0, 0.0],
+        };
+        let green = SpeedLine {
+            points: vec![DVec2::new(50.5, 10.0), DVec2::new(50.5, 90.0)],
+            colour: [0.0, 1.0, 0.0],
+        };
+        let layer = draw(&[red, green], &look, 100, 100);
+        let px = |x: u32, y: u32| layer.pixels[(y * 100 + x) as usize];
+        // Red alone: colour × alpha.
+        let only_red = px(20, 50);
+        assert!(only_red
+            .iter()
+            .zip([0.6, 0.0, 0.0, 0.6])
+            .all(|(a, b)| (a - b).abs() < 1e-6));
+        // Green over red: src + (1 − α_src)·dst.
+        let (a, red_under) = (0.6_f32, [0.6_f32, 0.0, 0.0, 0.6]);
+        let green_src = [0.0, 0.6, 0.0, 0.6];
+        let both = px(50, 50);
+        for c in 0..4 {
+            let expected = green_src[c] + (1.0 - a) * red_under[c];
+            assert!((both[c] - expected).abs() < 1e-6, "{both:?}");
+        }
+    }
+
+    #[test]
+    fn composite_over_shows_background_where_clear_and_colour_where_opaque() {
+        let colour = [0.9, 0.1, 0.5];
+        let look = LineLook {
+            width: 6.0,
+            taper: 1.0,
+            fade: 1.0,
+            opacity: 1.0,
+        };
+        // The top edge at y = 47.25 leaves row 47 partly covered.
+        let line = SpeedLine {
+            points: vec![DVec2::new(10.0, 50.25), DVec2::new(90.0, 50.25)],
+            colour,
+        };
+        let layer = draw(&[line], &look, 100, 100);
+        let background = [0.2, 0.3, 0.4];
+        let mut image = vec![background; 100 * 100];
+        layer.composite_over(&mut image);
+        assert_eq!(image[10 * 100 + 50], background);
+        for (got, want) in image[50 * 100 + 50].iter().zip(colour) {
+            assert!((got - want).abs() < 1e-6);
+        }
+        let edge = 47 * 100 + 50;
+        let a = layer.pixels[edge][3];
+        assert!(a > 0.1 && a < 0.9, "row 47 alpha {a}");
+        for c in 0..3 {
+            let expected = a * colour[c] + (1.0 - a) * background[c];
+            assert!((image[edge][c] - expected).abs() < 1e-6);
+        }
+    }
+
+    /// A 176° bend, a full reversal, and a hairpin through a segment shorter
+    /// than the half width. A miter would spike ~115 px out, per-segment
+    /// strokes would double alpha at the joints, and a wrong winding or inner
+    /// join would leave holes near the bends.
+    #[test]
+    fn sharp_bends_have_no_spikes_no_doubling_and_no_holes() {
+        let points = vec![
+            DVec2::new(20.0, 30.0),
+            DVec2::new(150.0, 30.0),
+            DVec2::new(30.0, 38.5),
+            DVec2::new(150.0, 47.0),
+            DVec2::new(150.0, 80.0),
+            DVec2::new(40.0, 80.0),
+            DVec2::new(150.0, 80.0),
+            DVec2::new(100.0, 80.0),
+            DVec2::new(100.0, 100.0),
+            DVec2::new(170.0, 100.0),
+            DVec2::new(168.0, 103.0),
+            DVec2::new(60.0, 105.0),
+        ];
+        let look = LineLook {
+            width: 8.0,
+            taper: 1.0,
+            fade: 1.0,
+            opacity: 0.5,
+        };
+        let line = SpeedLine {
+            points: points.clone(),
+            colour: WHITE,
+        };
+        let layer = draw(&[line], &look, 200, 130);
+        assert_sane(&layer);
+        for y in 0..layer.height {
+            for x in 0..layer.width {
+                let q = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let distance = distance_to_polyline(&points, q);
+                let a = alpha(&layer, x, y);
+                assert!(a <= 0.5 + 1e-6, "doubled alpha {a} at {q}");
+                assert!(distance <= 4.0 + AA_REACH_PX || a == 0.0, "spike at {q}");
+                // Well inside, away from the butt oldest end: fully covered.
+                if distance <= 4.0 - 1.0 && q.distance(points[0]) > 5.0 {
+                    assert!((a - 0.5).abs() < 1e-6, "hole: alpha {a} at {q}");
+                }
+            }
+        }
+    }
+
+    /// Random polylines with short segments and near-reversals, against the
+    /// ideal stroke (all points within the half width of the centre line):
+    /// well inside is fully covered once, well outside is clear.
+    #[test]
+    fn random_polylines_cover_exactly_their_stroke() {
+        let mut state = 0x5eed_u64;
+        let mut random = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1_u64 << 53) as f64
+        };
+        let size = 120;
+        for _ in 0..40 {
+            let mut points = vec![DVec2::new(40.0 + 40.0 * random(), 40.0 + 40.0 * random())];
+            let mut heading = std::f64::consts::TAU * random();
+            for _ in 0..2 + (6.0 * random()) as usize {
+                // Turn back: a full reversal ± 0.75 rad.
+                heading += std::f64::consts::PI + 1.5 * (random() - 0.5);
+                let step = if random() < 0.5 {
+                    0.2 + 3.0 * random()
+                } else {
+                    5.0 + 30.0 * random()
+                };
+                points.push(*points.last().unwrap() + step * DVec2::from_angle(heading));
+            }
+            let look = LineLook {
+                width: 4.0 + 12.0 * random(),
+                taper: 1.0,
+                fade: 1.0,
+                opacity: 0.7,
+            };
+            let line = SpeedLine {
+                points: points.clone(),
+                colour: WHITE,
+            };
+            let layer = draw(&[line], &look, size, size);
+            let h = look.width / 2.0;
+            for y in 0..size {
+                for x in 0..size {
+                    let q = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    let distance = distance_to_polyline(&points, q);
+                    let a = alpha(&layer, x, y);
+                    assert!(a <= 0.7 + 1e-6, "doubled alpha {a} at {q} in {points:?}");
+                    assert!(
+                        distance <= h + AA_REACH_PX || a == 0.0,
+                        "stray at {q} in {points:?}"
+                    );
+                    // The butt oldest end does not cover the disc behind it.
+                    if distance <= h - 1.0 && q.distance(points[0]) > h + 1.0 {
+                        assert!((a - 0.7).abs() < 1e-6, "hole at {q} in {points:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn far_off_screen_line_is_clipped_not_dropped() {
+        let line = SpeedLine {
+            points: vec![DVec2::new(-1e9, 50.5), DVec2::new(1e9, 50.5)],
+            colour: WHITE,
+        };
+        let layer = draw(&[line], &TAPERED, 200, 100);
+        assert_sane(&layer);
+        // Half way along: width 6·(0.25 + 0.75/2) = 3.75, opacity 0.6.
+        let sum = column_sum(&layer, 100);
+        assert!((sum - 3.75 * 0.6).abs() < 0.25 * 0.6 + 0.01, "sum {sum}");
+        assert!((column_peak(&layer, 100) - 0.6).abs() < 0.005);
+    }
+
+    #[test]
+    fn degenerate_inputs_neither_panic_nor_produce_nan() {
+        let p = DVec2::new(30.0, 30.0);
+        let bad_lines = [
+            vec![],
+            vec![p],
+            vec![p, p, p],
+            vec![p, p + DVec2::splat(1e-9)],
+            vec![p, DVec2::new(f64::NAN, 40.0), p + 10.0],
+            vec![p, DVec2::new(f64::INFINITY, 40.0)],
+            vec![DVec2::new(-1e9, -1e9), DVec2::new(1e9, 1e9)],
+            vec![DVec2::new(1e9, 1e9), DVec2::new(1e9 + 50.0, 1e9)],
+            vec![DVec2::new(-1e300, 30.0), DVec2::new(1e300, 30.0)],
+            vec![DVec2::new(-f64::MAX, 30.0), DVec2::new(f64::MAX, 30.0)],
+            vec![p, p + DVec2::X, p, p + DVec2::X, p],
+        ];
+        let mut lines: Vec<SpeedLine> = bad_lines
+            .into_iter()
+            .map(|points| SpeedLine {
+                points,
+                colour: WHITE,
+            })
+            .collect();
+        lines.push(SpeedLine {
+            points: vec![p, p + 20.0],
+            colour: [f32::NAN, 0.0, 1.0],
+        });
+        let looks = [
+            TAPERED,
+            LineLook {
+                width: f64::NAN,
+                ..TAPERED
+            },
+            LineLook {
+                width: 0.0,
+                ..TAPERED
+            },
+            LineLook {
+                width: -3.0,
+                ..TAPERED
+            },
+            LineLook {
+                width: 1e12,
+                ..TAPERED
+            },
+            LineLook {
+                width: 1e-9,
+                ..TAPERED
+            },
+            LineLook {
+                width: 6.0,
+                taper: f64::NAN,
+                fade: f64::INFINITY,
+                opacity: 7.0,
+            },
+            LineLook {
+                taper: 0.0,
+                fade: 0.0,
+                ..TAPERED
+            },
+        ];
+        for look in &looks {
+            for (width, height) in [(64, 48), (0, 48), (64, 0), (1, 1)] {
+                assert_sane(&draw(&lines, look, width, height));
+            }
+        }
+        let huge = draw(&lines, &TAPERED, u32::MAX, u32::MAX);
+        assert!(huge.pixels.is_empty());
+        let empty = draw(&lines, &TAPERED, 0, 100);
+        assert_eq!((empty.width, empty.height, empty.pixels.len()), (0, 100, 0));
+    }
+
+    #[test]
+    fn output_is_deterministic() {
+        let lines = [
+            straight_line([0.3, 0.6, 0.9]),
+            SpeedLine {
+                points: vec![
+                    DVec2::new(5.0, 90.0),
+                    DVec2::new(80.0, 10.0),
+                    DVec2::new(150.0, 95.0),
+                ],
+                colour: [0.9, 0.2, 0.1],
+            },
+        ];
+        let bits = |layer: LineLayer| -> Vec<u32> {
+            layer.pixels.iter().flatten().map(|c| c.to_bits()).collect()
+        };
+        let first = bits(draw(&lines, &TAPERED, 240, 100));
+        assert_eq!(first, bits(draw(&lines, &TAPERED, 240, 100)));
+        assert!(first.iter().any(|&b| b != 0));
+    }
+}

@@ -1,0 +1,314 @@
+//! Motion hints: where trails go and what emits them, their colour ramps, the blur they reduce to,
+//! speed lines under the object, and every preset in `styles/`.
+
+mod common;
+
+use common::*;
+use glam::DVec3;
+use std::path::Path;
+use std::sync::Arc;
+use streak::style::Style;
+use streak::{render, Framebuffer, Method, Plan, Render, Scene, Settings};
+
+fn style(text: &str) -> Arc<Style> {
+    Arc::new(Style::parse(text, Path::new("test-style.toml")).unwrap())
+}
+
+fn hint(scene: &Scene, style: &Arc<Style>) -> Render {
+    let settings = Settings {
+        method: Method::Hint,
+        style: Some(Arc::clone(style)),
+        ..Settings::default()
+    };
+    render(scene, &Plan::new(scene, 1.0), &settings, None)
+}
+
+/// The brightness of pixel (x, y).
+fn value(image: &Framebuffer, x: usize, y: usize) -> f32 {
+    let p = image.pixels[y * image.width as usize + x];
+    (p[0] + p[1] + p[2]) / 3.0
+}
+
+/// A 1×1 white square sliding `travel` world units along x (≈ 15 px per unit) in a 200×80 image.
+fn sliding_square(travel: f64) -> Scene {
+    let camera = camera(200, 80);
+    let motion = motion(&[
+        (0.0, pose(DVec3::new(-travel / 2.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(travel / 2.0, 0.0, 0.0), 0.0)),
+    ]);
+    let square = patch(DVec3::ZERO, [1.0, 1.0], 0.04, false);
+    scene(camera, vec![object(square, motion)])
+}
+
+/// The x of the brightness-weighted centroid of an image.
+fn centroid_x(image: &Framebuffer) -> f64 {
+    let (mut sum, mut moment) = (0.0, 0.0);
+    for y in 0..image.height as usize {
+        for x in 0..image.width as usize {
+            let v = f64::from(value(image, x, y));
+            sum += v;
+            moment += v * (x as f64 + 0.5);
+        }
+    }
+    moment / sum
+}
+
+#[test]
+fn trails_point_away_from_the_direction_of_motion() {
+    let trail_only = style("[object]\ndraw = false");
+    for travel in [6.0, -6.0] {
+        let scene = sliding_square(travel);
+        let scale = px_per_unit(&scene.camera);
+        // The square ends (at the flash) this far right of the image centre, px.
+        let end = 100.0 + travel / 2.0 * scale;
+        let image = hint(&scene, &trail_only).image;
+        // The trail spans the path behind the square: its centroid is the path's middle, the
+        // image centre. Ahead of where the square is at the flash there is only the spill of the
+        // last motion ellipse's Gaussian end (widened to half a chord against beading, blur.rs):
+        // a small share of the trail's light, far fainter than the trail.
+        let c = centroid_x(&image);
+        assert!((c - 100.0).abs() < 1.0, "travel {travel}: centroid {c}");
+        let leading_edge = end + travel.signum() * (0.5 * scale + 1.0);
+        let (mut ahead, mut total, mut peak_ahead, mut peak) = (0.0, 0.0, 0.0f32, 0.0f32);
+        for x in 0..200usize {
+            let v = value(&image, x, 40);
+            total += v;
+            peak = peak.max(v);
+            if (x as f64 + 0.5 - leading_edge) * travel.signum() > 0.0 {
+                ahead += v;
+                peak_ahead = peak_ahead.max(v);
+            }
+        }
+        assert!(
+            ahead < 0.05 * total,
+            "travel {travel}: {ahead} of {total} ahead"
+        );
+        assert!(
+            peak_ahead < 0.25 * peak,
+            "travel {travel}: {peak_ahead} vs {peak}"
+        );
+        // With the object drawn, the trail shows behind it and the square sits at its end.
+        let full = hint(&scene, &style("")).image;
+        let behind = (end - travel.signum() * 2.0 * scale) as usize;
+        assert!(value(&full, behind, 40) > 0.1);
+        assert!((value(&full, end as usize, 40) - 1.0).abs() < 1e-3);
+    }
+}
+
+#[test]
+fn zero_motion_gives_no_trail_and_the_static_image() {
+    let camera = camera(200, 80);
+    let square = patch(DVec3::ZERO, [1.0, 1.0], 0.04, false);
+    let still = scene(
+        camera,
+        vec![object(square, motion(&[(0.0, pose(DVec3::ZERO, 0.0))]))],
+    );
+    let sharp = streak::render::render_static(&still, 1.0).image;
+    for preset in ["", "[trail]\nblend = \"add\"\ncopies = 4\nduty = 0.5"] {
+        let out = hint(&still, &style(preset));
+        assert_eq!(out.stats.hint.trail_splats, 0);
+        // Only the object layer's opacity arithmetic (1 − (1 − T)) may differ, in the last bit.
+        assert!(rmse(&out.image, &sharp) < 1e-6);
+    }
+}
+
+#[test]
+fn a_full_trail_alone_is_the_blur() {
+    // A hint that draws no sharp object and a trail of the whole exposure, from every point, in
+    // the object's colours with the Gaussian footprint, is the physically based blur.
+    let trail_only = style("[object]\ndraw = false\n[trail]\nemitters = \"all\"");
+    let camera = camera(200, 200);
+    let spinning = motion(&[
+        (0.0, pose(DVec3::ZERO, 0.0)),
+        (1.0, pose(DVec3::ZERO, 60.0)),
+    ]);
+    let rod = patch(DVec3::new(1.2, 0.0, 0.0), [2.4, 0.15], 0.03, false);
+    for scene in [
+        sliding_square(6.0),
+        scene(camera, vec![object(rod, spinning)]),
+    ] {
+        let blur = draw(&scene, Method::Blur, 1.0, 1);
+        let trail = hint(&scene, &trail_only).image;
+        assert!(rmse(&trail, &blur) < 1e-5, "{}", rmse(&trail, &blur));
+    }
+}
+
+#[test]
+fn the_colour_ramp_follows_screen_speed() {
+    // A rod spinning about one end: points move in proportion to their radius, so along the swept
+    // fan the ramp from white (still) to red (fastest) loses green as the radius grows.
+    let camera = camera(240, 240);
+    let scale = px_per_unit(&camera);
+    let spinning = motion(&[
+        (0.0, pose(DVec3::ZERO, 0.0)),
+        (1.0, pose(DVec3::ZERO, 40.0)),
+    ]);
+    let rod = patch(DVec3::new(1.25, 0.0, 0.0), [2.5, 0.2], 0.03, false);
+    let scene = scene(camera, vec![object(rod, spinning)]);
+    let ramp = style(
+        "[object]\ndraw = false\n[trail]\ncolour = \"ramp\"\nramp_by = \"speed\"\nramp = [[1, 1, 1], [1, 0, 0]]",
+    );
+    let image = hint(&scene, &ramp).image;
+    let angle = 20f64.to_radians();
+    let mut previous = f32::INFINITY;
+    for radius in [0.4, 0.8, 1.2, 1.6, 2.0, 2.3] {
+        let x = (120.0 + radius * angle.cos() * scale) as usize;
+        let y = (120.0 - radius * angle.sin() * scale) as usize;
+        let p = image.pixels[y * 240 + x];
+        assert!(p[0] > 0.05, "no trail at radius {radius}: {p:?}");
+        // Green over red is 1 − u for this ramp, whatever the coverage; u is the speed over the
+        // fastest probed path (the far end, radius ≈ 2.5).
+        let green = p[1] / p[0];
+        let expected = 1.0 - radius / 2.5;
+        assert!(
+            green < previous,
+            "radius {radius}: {green} after {previous}"
+        );
+        assert!(
+            (f64::from(green) - expected).abs() < 0.08,
+            "radius {radius}: {green} vs {expected}"
+        );
+        previous = green;
+    }
+}
+
+#[test]
+fn back_facing_points_emit_no_trail() {
+    let camera = camera(200, 80);
+    let sliding = motion(&[
+        (0.0, pose(DVec3::new(-3.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(3.0, 0.0, 0.0), 0.0)),
+    ]);
+    let away = patch(DVec3::ZERO, [1.0, 1.0], 0.04, true);
+    let count = away.len();
+    let scene = scene(camera, vec![object(away, sliding)]);
+    let out = hint(&scene, &style(""));
+    assert_eq!(out.stats.hint.back_facing, count);
+    assert_eq!(out.stats.hint.trail_splats, 0);
+    assert!(out.image.pixels.iter().all(|p| *p == [0.0; 3]));
+    // Asked for trails from every point, they are still left out while facing away.
+    let all = hint(&scene, &style("[trail]\nemitters = \"all\""));
+    assert_eq!(all.stats.hint.trail_splats, 0);
+    let culled = all.stats.hint.trail_culled.back_facing;
+    assert!(culled >= count && culled.is_multiple_of(count), "{culled}");
+}
+
+#[test]
+fn points_hidden_at_the_flash_emit_no_trail() {
+    // A still wall in front; a square rises from below it to end hidden behind it.
+    let camera = camera(120, 160);
+    let scale = px_per_unit(&camera);
+    let wall = patch(DVec3::new(0.0, 0.0, 1.0), [2.0, 2.0], 0.04, false);
+    let rising = motion(&[
+        (0.0, pose(DVec3::new(0.0, -3.5, 0.0), 0.0)),
+        (1.0, pose(DVec3::ZERO, 0.0)),
+    ]);
+    let square = patch(DVec3::ZERO, [1.0, 1.0], 0.04, false);
+    let count = square.len();
+    let still = motion(&[(0.0, pose(DVec3::ZERO, 0.0))]);
+    let scene = scene(camera, vec![object(wall, still), object(square, rising)]);
+    // Below the wall, on the square's path (2.5 units down, under the wall's edge at ≈ 1.1).
+    let below = (80.0 + 2.5 * scale) as usize;
+    let visible = hint(&scene, &style(""));
+    assert_eq!(visible.stats.hint.hidden, count);
+    assert_eq!(visible.stats.hint.trail_splats, 0);
+    assert!(value(&visible.image, 60, below) < 1e-6);
+    let facing = hint(&scene, &style("[trail]\nemitters = \"front-facing\""));
+    assert_eq!(facing.stats.hint.hidden, 0);
+    assert!(value(&facing.image, 60, below) > 0.2);
+}
+
+#[test]
+fn speed_lines_trail_the_object_and_lie_under_it() {
+    let mut scene = sliding_square(6.0);
+    for s in &mut scene.objects[0].surfels {
+        s.colour = [0.5; 3];
+    }
+    let lines = style(
+        "background = [1, 1, 1]\n[trail]\ndraw = false\n[speed_lines]\ndraw = true\nselect = \"sample\"\ncount = 5\nspacing = 3\ncolour = [0, 0, 0]\nwidth = 2\ntaper = 1\nfade = 1",
+    );
+    let out = hint(&scene, &lines);
+    assert!((1..=5).contains(&out.stats.hint.speed_lines));
+    let scale = px_per_unit(&scene.camera);
+    let end = 100.0 + 3.0 * scale;
+    // Behind the square, along the path, some column is inked.
+    let behind = (end - 2.0 * scale) as usize;
+    let darkest = (0..80)
+        .map(|y| value(&out.image, behind, y))
+        .fold(1.0, f32::min);
+    assert!(darkest < 0.5, "{darkest}");
+    // Ahead of it, nothing; on it, only the object: the lines pass under it.
+    let ahead = (end + 0.5 * scale + 4.0) as usize;
+    assert!((0..80).all(|y| value(&out.image, ahead, y) == 1.0));
+    for y in 36..44 {
+        assert!((value(&out.image, end as usize, y) - 0.5).abs() < 1e-3);
+    }
+}
+
+#[test]
+fn every_preset_parses_and_renders_a_small_frame() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("styles");
+    let mut presets: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    presets.sort();
+    assert!(presets.len() >= 8, "{} presets", presets.len());
+    // A lit sphere (so that it has a silhouette and shading) sliding across the frame.
+    let scene = Scene::parse(
+        r#"
+        background = [0.3, 0.3, 0.3]
+        [camera]
+        eye = [0, 0, 10]
+        target = [0, 0, 0]
+        fov_y = 30
+        width = 192
+        height = 96
+        [lighting]
+        ambient = 0.2
+        light = [{ direction = [0, 1, 1] }]
+        [[object]]
+        shape = { type = "sphere", radius = 0.6 }
+        spacing = 0.05
+        colour = [0.9, 0.4, 0.1]
+        [[object.keyframe]]
+        t = 0
+        translate = [-2, 0, 0]
+        [[object.keyframe]]
+        t = 1
+        translate = [2, 0, 0]
+        "#,
+        &dir.join("test-scene.toml"),
+    )
+    .unwrap();
+    let drawn = |image: &Framebuffer, background: [f32; 3]| {
+        image
+            .pixels
+            .iter()
+            .filter(|p| (0..3).any(|c| (p[c] - background[c]).abs() > 0.02))
+            .count()
+    };
+    let sphere = drawn(
+        &streak::render::render_static(&scene, 1.0).image,
+        scene.background,
+    );
+    for path in &presets {
+        let style = Arc::new(Style::load(path).unwrap_or_else(|e| panic!("{e}")));
+        assert!(
+            !style.description.is_empty(),
+            "{}: no description",
+            path.display()
+        );
+        let image = hint(&scene, &style).image;
+        let background = style.background.unwrap_or(scene.background);
+        assert!(image.pixels.iter().flatten().all(|c| c.is_finite()));
+        // A trail or speed lines draw at least half as much again as the sphere at the flash.
+        let changed = drawn(&image, background);
+        assert!(
+            2 * changed > 3 * sphere,
+            "{}: {changed} pixels drawn, the sphere covers {sphere}",
+            path.display()
+        );
+    }
+}
