@@ -168,6 +168,31 @@ impl Culled {
     }
 }
 
+/// Run `make` for surfels 0..`count` in parallel, each keeping footprints or counting why not,
+/// and gather the results in surfel order (so the list does not depend on the thread count).
+/// Collecting per surfel keeps only what survives: with hundreds of sub-segments per surfel,
+/// most of them off screen, collecting every result first would cost gigabytes.
+pub fn per_surfel(
+    count: usize,
+    make: impl Fn(usize, &mut Vec<Footprint>, &mut Culled) + Sync,
+) -> (Vec<Footprint>, Culled) {
+    let parts: Vec<(Vec<Footprint>, Culled)> = (0..count)
+        .into_par_iter()
+        .map(|i| {
+            let (mut kept, mut culled) = (Vec::new(), Culled::default());
+            make(i, &mut kept, &mut culled);
+            (kept, culled)
+        })
+        .collect();
+    let mut footprints = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
+    let mut culled = Culled::default();
+    for (kept, c) in parts {
+        footprints.extend(kept);
+        culled.add(&c);
+    }
+    (footprints, culled)
+}
+
 /// The footprint of a surfel view drawn sharp (the static EWA splat).
 pub fn static_footprint(camera: &Camera, view: &SurfelView) -> Result<Footprint, Cull> {
     if !(view.facing > 0.0) {

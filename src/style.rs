@@ -388,6 +388,32 @@ fn within(path: &Path, field: &str, v: f64, lo: f64, hi: f64) -> Result<f64> {
     }
 }
 
+/// A share in (0, 1].
+fn share(path: &Path, field: &str, v: f64) -> Result<f64> {
+    if finite(path, field, v)? > 0.0 && v <= 1.0 {
+        Ok(v)
+    } else {
+        Err(Error::input(
+            path,
+            field,
+            format!("{v}: must be greater than 0 and at most 1"),
+        ))
+    }
+}
+
+/// A count from 1 to `max`.
+fn count(path: &Path, field: &str, v: u32, max: u32) -> Result<u32> {
+    if (1..=max).contains(&v) {
+        Ok(v)
+    } else {
+        Err(Error::input(
+            path,
+            field,
+            format!("{v}: use between 1 and {max}"),
+        ))
+    }
+}
+
 fn validate(spec: StyleSpec, path: &Path) -> Result<Style> {
     let o = &spec.object;
     let object = ObjectLook {
@@ -400,21 +426,6 @@ fn validate(spec: StyleSpec, path: &Path) -> Result<Style> {
             .transpose()?,
     };
     let t = &spec.trail;
-    if !(1..=MAX_COPIES).contains(&t.copies) {
-        return Err(Error::input(
-            path,
-            "trail.copies",
-            format!("{}: use between 1 and {MAX_COPIES}", t.copies),
-        ));
-    }
-    let duty = finite(path, "trail.duty", t.duty)?;
-    if !(duty > 0.0 && duty <= 1.0) {
-        return Err(Error::input(
-            path,
-            "trail.duty",
-            format!("{duty}: the drawn share of each copy's slot must be in (0, 1]"),
-        ));
-    }
     let trail_colour = match (t.colour, &t.ramp) {
         (TrailColourSpec::Object, _) => TrailColour::Object,
         (TrailColourSpec::Ramp, None) => {
@@ -475,23 +486,13 @@ fn validate(spec: StyleSpec, path: &Path) -> Result<Style> {
         draw: t.draw,
         length: within(path, "trail.length", t.length, 0.0, 1.0)?,
         offset: within(path, "trail.offset", t.offset, 0.0, 1.0)?,
-        copies: t.copies,
-        duty,
+        copies: count(path, "trail.copies", t.copies, MAX_COPIES)?,
+        duty: share(path, "trail.duty", t.duty)?,
         blend: t.blend,
         composite: t.composite,
         intensity: within(path, "trail.intensity", t.intensity, 0.0, 100.0)?,
         width: within(path, "trail.width", t.width, 0.1, 20.0)?,
-        density: {
-            let d = finite(path, "trail.density", t.density)?;
-            if !(d > 0.0 && d <= 1.0) {
-                return Err(Error::input(
-                    path,
-                    "trail.density",
-                    format!("{d}: the share of points that emit must be in (0, 1]"),
-                ));
-            }
-            d
-        },
+        density: share(path, "trail.density", t.density)?,
         colour: trail_colour,
         fade: within(path, "trail.fade", t.fade, 0.0, 1.0)?,
         profile,
@@ -501,16 +502,9 @@ fn validate(spec: StyleSpec, path: &Path) -> Result<Style> {
         emitters: t.emitters,
     };
     let s = &spec.speed_lines;
-    if !(1..=MAX_SPEED_LINES).contains(&s.count) {
-        return Err(Error::input(
-            path,
-            "speed_lines.count",
-            format!("{}: use between 1 and {MAX_SPEED_LINES}", s.count),
-        ));
-    }
     let speed_lines = SpeedLines {
         draw: s.draw,
-        count: s.count,
+        count: count(path, "speed_lines.count", s.count, MAX_SPEED_LINES)?,
         select: s.select,
         spacing: within(path, "speed_lines.spacing", s.spacing, 0.0, 1e4)?,
         length: within(path, "speed_lines.length", s.length, 0.0, 1.0)?,

@@ -26,12 +26,11 @@
 
 use super::{draw, Render, Stats};
 use crate::plan::{ObjectMotion, Plan};
-use crate::project::{object_footprints_at, view_surfel, Cull, Culled, Instant, SurfelView};
-use crate::raster::{Footprint, ScreenSplat, Sym2, TimeBins, TimeExtent, PREFILTER_VARIANCE_PX2};
+use crate::project::{object_footprints_at, per_surfel, view_surfel, Cull, Instant, SurfelView};
+use crate::raster::{ScreenSplat, Sym2, TimeBins, TimeExtent, PREFILTER_VARIANCE_PX2};
 use crate::scene::Scene;
 use crate::shutter::{Shutter, TimeMoments};
 use glam::DVec2;
-use rayon::prelude::*;
 
 /// Bins of shutter time in which coverage is composited (see [`crate::raster::TimeBins`]). Where
 /// one bin holds coverage of a surface from two depth groups it is still composited as layers,
@@ -67,37 +66,28 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             .iter()
             .map(|&[t0, t1]| scene.shutter.moments(t0, t1))
             .collect();
-        // Kept footprints and cull counts per surfel: with hundreds of sub-segments per surfel,
-        // most of them off screen, collecting every result first would cost gigabytes.
-        let per_surfel: Vec<(Vec<Footprint>, Culled)> = object
-            .surfels
-            .par_iter()
-            .map(|surfel| {
-                let views: Vec<Option<SurfelView>> = instants
-                    .iter()
-                    .map(|instant| view_surfel(camera, instant, &scene.lighting, surfel))
-                    .collect();
-                let (mut kept, mut culled) = (Vec::new(), Culled::default());
-                for (k, &segment) in segments.iter().enumerate() {
-                    let result = match (&views[k], &views[k + 1]) {
-                        (Some(a), Some(b)) => {
-                            motion_ellipse(&scene.shutter, a, b, segment, &moments[k], chained)
-                                .and_then(|e| {
-                                    e.footprint(camera.width, camera.height)
-                                        .map_err(Cull::Raster)
-                                })
-                        }
-                        _ => Err(Cull::BehindNear),
-                    };
-                    culled.keep(result, &mut kept);
-                }
-                (kept, culled)
-            })
-            .collect();
-        for (kept, culled) in per_surfel {
-            footprints.extend(kept);
-            stats.culled.add(&culled);
-        }
+        let (kept, culled) = per_surfel(object.surfels.len(), |i, kept, culled| {
+            let surfel = &object.surfels[i];
+            let views: Vec<Option<SurfelView>> = instants
+                .iter()
+                .map(|instant| view_surfel(camera, instant, &scene.lighting, surfel))
+                .collect();
+            for (k, &segment) in segments.iter().enumerate() {
+                let result = match (&views[k], &views[k + 1]) {
+                    (Some(a), Some(b)) => {
+                        motion_ellipse(&scene.shutter, a, b, segment, &moments[k], chained)
+                            .and_then(|e| {
+                                e.footprint(camera.width, camera.height)
+                                    .map_err(Cull::Raster)
+                            })
+                    }
+                    _ => Err(Cull::BehindNear),
+                };
+                culled.keep(result, kept);
+            }
+        });
+        footprints.extend(kept);
+        stats.culled.add(&culled);
     }
     // Coverage is composited per bin of shutter time only when something moves; a still scene is
     // an instant.

@@ -29,7 +29,9 @@ use super::blur::{motion_ellipse, TIME_BINS};
 use super::{Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
-use crate::project::{static_footprint, view_surfel, Cull, Culled, Instant, SurfelView};
+use crate::project::{
+    per_surfel, static_footprint, view_surfel, Cull, Culled, Instant, SurfelView,
+};
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
 use crate::scene::{Object, Scene};
 use crate::shutter::{Shutter, ShutterShape};
@@ -401,64 +403,51 @@ fn object_trails(
         .iter()
         .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
         .collect();
-    let per_surfel: Vec<(Vec<Footprint>, Culled)> = object
-        .surfels
-        .par_iter()
-        .zip(emits)
-        .map(|(surfel, &emits)| {
-            let (mut kept, mut culled) = (Vec::new(), Culled::default());
-            if !emits {
-                return (kept, culled);
-            }
-            let area_scale = style.trail.width * style.trail.width;
-            let views: Vec<Option<SurfelView>> = instants
-                .iter()
-                .map(|instant| {
-                    let mut view = view_surfel(camera, instant, &scene.lighting, surfel)?;
-                    view.splat.covariance = view.splat.covariance.scaled(area_scale);
-                    view.splat.weight *= area_scale;
-                    Some(view)
-                })
-                .collect();
-            for piece in &pieces {
-                let [ia, ib] = piece.ends;
-                let result = match (&views[ia], &views[ib]) {
-                    (Some(a), Some(b)) => {
-                        let [v0, v1] = piece.local;
-                        motion_ellipse(
-                            &COPY_TIME,
-                            a,
-                            b,
-                            piece.local,
-                            &COPY_TIME.moments(v0, v1),
-                            piece.chained,
+    per_surfel(object.surfels.len(), |i, kept, culled| {
+        if !emits[i] {
+            return;
+        }
+        let surfel = &object.surfels[i];
+        let area_scale = style.trail.width * style.trail.width;
+        let views: Vec<Option<SurfelView>> = instants
+            .iter()
+            .map(|instant| {
+                let mut view = view_surfel(camera, instant, &scene.lighting, surfel)?;
+                view.splat.covariance = view.splat.covariance.scaled(area_scale);
+                view.splat.weight *= area_scale;
+                Some(view)
+            })
+            .collect();
+        for piece in &pieces {
+            let [ia, ib] = piece.ends;
+            let result = match (&views[ia], &views[ib]) {
+                (Some(a), Some(b)) => {
+                    let [v0, v1] = piece.local;
+                    motion_ellipse(
+                        &COPY_TIME,
+                        a,
+                        b,
+                        piece.local,
+                        &COPY_TIME.moments(v0, v1),
+                        piece.chained,
+                    )
+                    .map(|ellipse| {
+                        let normals = [&instants[ia], &instants[ib]]
+                            .map(|instant| instant.world_normal(surfel.normal));
+                        styled(
+                            ellipse, style, scene, a, b, normals, piece, window, fastest_px,
                         )
-                        .map(|ellipse| {
-                            let normals = [&instants[ia], &instants[ib]]
-                                .map(|instant| instant.world_normal(surfel.normal));
-                            styled(
-                                ellipse, style, scene, a, b, normals, piece, window, fastest_px,
-                            )
-                        })
-                        .and_then(|e| {
-                            e.footprint(camera.width, camera.height)
-                                .map_err(Cull::Raster)
-                        })
-                    }
-                    _ => Err(Cull::BehindNear),
-                };
-                culled.keep(result, &mut kept);
-            }
-            (kept, culled)
-        })
-        .collect();
-    let mut footprints = Vec::new();
-    let mut culled = Culled::default();
-    for (kept, c) in per_surfel {
-        footprints.extend(kept);
-        culled.add(&c);
-    }
-    (footprints, culled)
+                    })
+                    .and_then(|e| {
+                        e.footprint(camera.width, camera.height)
+                            .map_err(Cull::Raster)
+                    })
+                }
+                _ => Err(Cull::BehindNear),
+            };
+            culled.keep(result, kept);
+        }
+    })
 }
 
 /// A motion ellipse dressed as a trail splat: colour from the style's source, weight scaled by
