@@ -10,6 +10,7 @@
 
 use crate::error::{Error, Result};
 use crate::pointcloud;
+use crate::volume::VolumeShape;
 use glam::DVec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -87,8 +88,8 @@ pub const MAX_SURFELS_PER_OBJECT: f64 = 20e6;
 /// Neighbours used to estimate normals, radii and areas of a point cloud, unless the scene says.
 pub const DEFAULT_NEIGHBOURS: usize = 12;
 
-/// An object's geometry, in its own object space: a procedural primitive (centred at the origin)
-/// or a point cloud file.
+/// An object's geometry, in its own object space: a procedural primitive (centred at the origin),
+/// a point cloud file or the iso-surface of a volume file (centred likewise).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Shape {
@@ -141,6 +142,9 @@ pub enum Shape {
         /// Neighbours used for estimation (default [`DEFAULT_NEIGHBOURS`]).
         neighbours: Option<usize>,
     },
+    /// The iso-surface of a raw scalar volume (optionally gzipped), one surfel per voxel cell it
+    /// crosses (Guan & Mueller 2004, §3.1); see [`crate::volume`].
+    Volume(VolumeShape),
 }
 
 /// How an object is coloured.
@@ -210,6 +214,21 @@ pub fn build_surfels(
         }
         return surfels_from_cloud(&pointcloud::read_ply(&base.join(path))?, k, colour);
     }
+    if let Shape::Volume(volume) = shape {
+        if spacing.is_some() {
+            return Err(Error::input(
+                file,
+                field.replace(".shape", ".spacing"),
+                "a volume makes one surfel per voxel cell its surface crosses: remove this \
+                 `spacing` (the distance between voxels is `shape.spacing = [x, y, z]`)",
+            ));
+        }
+        let mut surfels = volume.surfels(file, base, field, MAX_SURFELS_PER_OBJECT as usize)?;
+        for s in &mut surfels {
+            s.colour = colour_for(colour, s.normal, None);
+        }
+        return Ok(surfels);
+    }
     let dimensions: Vec<(&str, f64)> = match *shape {
         Shape::Sphere { radius } => vec![("radius", radius)],
         Shape::Quad { size } => vec![("size[0]", size[0]), ("size[1]", size[1])],
@@ -221,7 +240,7 @@ pub fn build_surfels(
         Shape::Cylinder { radius, length } => vec![("radius", radius), ("length", length)],
         Shape::Torus { major, minor } => vec![("major", major), ("minor", minor)],
         Shape::TorusKnot { scale, tube, .. } => vec![("scale", scale), ("tube", tube)],
-        Shape::Ply { .. } => Vec::new(),
+        Shape::Ply { .. } | Shape::Volume(_) => Vec::new(),
     };
     for (name, v) in &dimensions {
         if !(v.is_finite() && *v > 0.0) {
@@ -292,7 +311,7 @@ fn surfels_from_cloud(
 fn sample_primitive(shape: &Shape, spacing: f64) -> Option<Vec<Surfel>> {
     let mut out = Sampler::default();
     match *shape {
-        Shape::Ply { .. } => {}
+        Shape::Ply { .. } | Shape::Volume(_) => {}
         Shape::Sphere { radius } => sample_sphere(radius, spacing, &mut out),
         Shape::Quad { size } => sample_quad(
             DVec3::ZERO,

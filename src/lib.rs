@@ -2,11 +2,11 @@
 //! one pipeline: physically based motion blur, and (later) stylized motion hints.
 //!
 //! The pipeline, one module per stage: a [`scene`] file is validated into surfels
-//! ([`geometry`], [`pointcloud`]) with keyframed [`motion`], a [`camera`] and a [`shutter`];
-//! a [`plan`] decides what the scene needs; the shared [`project`]ion stage turns surfels into
-//! screen-space footprints that the shared [`raster`]izer composites; the [`render`]ers differ
-//! only in the footprints they make. [`metrics`] and [`study`] measure error against run time,
-//! [`plot`] draws it, [`output`] writes images.
+//! ([`geometry`], [`pointcloud`], [`volume`]) with keyframed [`motion`], a [`camera`] and a
+//! [`shutter`]; a [`plan`] decides what the scene needs; the shared [`project`]ion stage turns
+//! surfels into screen-space footprints that the shared [`raster`]izer composites; the
+//! [`render`]ers differ only in the footprints they make. [`metrics`] and [`study`] measure
+//! error against run time, [`plot`] draws it, [`output`] writes images.
 //!
 //! ```
 //! use streak::{render, Method, Plan, Scene, Settings};
@@ -57,6 +57,7 @@ pub mod scene;
 pub mod shutter;
 pub mod study;
 pub mod style;
+pub mod volume;
 
 pub use error::{Error, Result};
 pub use framebuffer::Framebuffer;

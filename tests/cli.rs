@@ -268,6 +268,79 @@ fn zero_normals_in_a_ply_are_rejected() {
     );
 }
 
+const VOLUME_SCENE: &str = r#"
+[camera]
+eye = [0, 0, 5]
+target = [0, 0, 0]
+fov_y = 40
+width = 32
+height = 32
+
+[[object]]
+shape = { type = "volume", path = "blob.raw", dimensions = [4, 4, 4], voxel = "uint8", iso = 50 }
+colour = "normal"
+[[object.keyframe]]
+t = 0
+scale = 0.5
+"#;
+
+/// A 4³ uint8 volume: a 2³ block of 200 in the middle of zeros.
+fn blob() -> Vec<u8> {
+    (0..64)
+        .map(|i| {
+            let inner = |c: usize| (1..=2).contains(&c);
+            if inner(i % 4) && inner(i / 4 % 4) && inner(i / 16) {
+                200
+            } else {
+                0
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn a_volume_renders_and_its_mistakes_name_the_field() {
+    let blob = blob();
+    let (ok, stderr) = render_scene("volume", VOLUME_SCENE, &[("blob.raw", &blob)]);
+    assert!(ok, "{stderr}");
+    rejected(
+        "volume-size",
+        VOLUME_SCENE,
+        &[("blob.raw", &blob[..63])],
+        &["blob.raw", "expected 64 bytes", "found 63"],
+    );
+    rejected(
+        "volume-voxel",
+        &VOLUME_SCENE.replace("\"uint8\"", "\"int32\""),
+        &[("blob.raw", &blob)],
+        &["object[0].shape.voxel", "\"float32\""],
+    );
+    rejected(
+        "volume-dimension",
+        &VOLUME_SCENE.replace("[4, 4, 4]", "[4, 0, 16]"),
+        &[("blob.raw", &blob)],
+        &["object[0].shape.dimensions[1]", "at least 2"],
+    );
+    rejected(
+        "volume-iso",
+        &VOLUME_SCENE.replace("iso = 50", "iso = 250"),
+        &[("blob.raw", &blob)],
+        &["object[0].shape.iso", "from 0 to 200"],
+    );
+    rejected(
+        "volume-spacing",
+        &VOLUME_SCENE.replace("colour = \"normal\"", "spacing = 0.1"),
+        &[("blob.raw", &blob)],
+        &["object[0].spacing", "shape.spacing"],
+    );
+    rejected(
+        "volume-unknown",
+        &VOLUME_SCENE.replace("iso = 50", "iso = 50, threshold = 3"),
+        &[("blob.raw", &blob)],
+        &["threshold"],
+    );
+}
+
 #[test]
 fn command_line_mistakes_are_explained() {
     let dir = workdir("args");
