@@ -1,12 +1,14 @@
 //! streak renders moving point-based geometry (surfels: oriented Gaussian disks) two ways from
-//! one pipeline: physically based motion blur, and (later) stylized motion hints.
+//! one pipeline: physically based motion blur, and stylized motion hints (the object sharp at a
+//! flash over a trail drawn in a [`style`]).
 //!
 //! The pipeline, one module per stage: a [`scene`] file is validated into surfels
 //! ([`geometry`], [`pointcloud`], [`volume`]) with keyframed [`motion`], a [`camera`] and a
 //! [`shutter`]; a [`plan`] decides what the scene needs; the shared [`project`]ion stage turns
 //! surfels into screen-space footprints that the shared [`raster`]izer composites; the
-//! [`render`]ers differ only in the footprints they make. [`metrics`] and [`study`] measure
-//! error against run time, [`plot`] draws it, [`output`] writes images.
+//! [`render`](mod@render)ers differ only in the footprints they make. [`metrics`] and [`study`] measure
+//! error against run time, [`plot`] draws it, [`gallery`] puts renders side by side on a page,
+//! [`output`] writes images.
 //!
 //! ```
 //! use streak::{render, Method, Plan, Scene, Settings};

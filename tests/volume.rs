@@ -2,7 +2,10 @@
 //! as a closed surface: coverage ≈ 1 everywhere inside its silhouette, nothing outside it.
 
 use std::io::Write;
-use streak::{render, Method, Plan, Scene, Settings};
+mod common;
+
+use common::{least_coverage_inside_unit_sphere, UNIT_SPHERE_VIEW};
+use streak::Scene;
 
 /// Voxels along each axis, and the sphere's radius in voxels.
 const SIDE: usize = 48;
@@ -35,53 +38,18 @@ fn a_volume_iso_surface_covers_its_silhouette_without_holes() {
     encoder.write_all(&ball_volume()).unwrap();
     std::fs::write(dir.join("ball.raw.gz"), encoder.finish().unwrap()).unwrap();
     // The keyframe scales the ball from 18 voxels to radius 1, seen from distance 4.
-    let scene_text = r#"
-        background = [0, 0, 0]
-        [camera]
-        eye = [0, 0, 4]
-        target = [0, 0, 0]
-        fov_y = 35
-        width = 160
-        height = 160
+    let scene_text = format!(
+        r#"{UNIT_SPHERE_VIEW}
         [[object]]
-        shape = { type = "volume", path = "ball.raw.gz", dimensions = [48, 48, 48], voxel = "uint8", iso = 100 }
+        shape = {{ type = "volume", path = "ball.raw.gz", dimensions = [48, 48, 48], voxel = "uint8", iso = 100 }}
         colour = [1, 1, 1]
         [[object.keyframe]]
         t = 0
         scale = 0.05555555555555555
-    "#;
-    let scene = Scene::parse(scene_text, &dir.join("scene.toml")).unwrap();
-    let settings = Settings {
-        method: Method::Static,
-        ..Settings::default()
-    };
-    let image = render(&scene, &Plan::new(&scene, 1.0), &settings, None).image;
-    streak::output::write_png(&image, "/tmp/vol_cov.png".as_ref()).unwrap();
-    let mut low: Vec<(u32, u32, f32)> = Vec::new();
-
-    // The silhouette of a unit sphere seen from distance 4 has radius f·tan(asin(1/4)).
-    let f = scene.camera.focal_px;
-    let radius_px = f * (1.0f64 / 4.0).asin().tan();
-    let (mut inside, mut worst) = (0, 1.0f32);
-    for y in 0..160u32 {
-        for x in 0..160u32 {
-            let d = ((x as f64 + 0.5 - 80.0).powi(2) + (y as f64 + 0.5 - 80.0).powi(2)).sqrt();
-            let value = image.pixels[(y * 160 + x) as usize][0];
-            if d < radius_px - 2.0 {
-                inside += 1;
-                worst = worst.min(value);
-                if value < 0.98 {
-                    low.push((x, y, value));
-                }
-            } else if d > radius_px + 3.0 {
-                assert!(
-                    value < 0.01,
-                    "coverage outside the silhouette at ({x}, {y})"
-                );
-            }
-        }
-    }
-    assert!(inside > 10_000);
+    "#
+    );
+    let scene = Scene::parse(&scene_text, &dir.join("scene.toml")).unwrap();
+    let worst = least_coverage_inside_unit_sphere(&scene);
     // Surface-nets points are not a regular lattice: their Gaussians add up to 1 within about
     // ±2 %, and the polygons they stand for are 0.7 % short of the sphere's area. A hole would
     // fail by far: areas from the mean crossing count alone left rings down to 0.64.

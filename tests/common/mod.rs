@@ -121,3 +121,42 @@ pub fn rmse(a: &Framebuffer, b: &Framebuffer) -> f64 {
         .sum();
     (sum / (3 * a.pixels.len()) as f64).sqrt()
 }
+
+/// Background and camera of the coverage tests: a unit sphere at the origin seen from distance 4
+/// fills a 160×160 image's middle.
+pub const UNIT_SPHERE_VIEW: &str = r#"
+    background = [0, 0, 0]
+    [camera]
+    eye = [0, 0, 4]
+    target = [0, 0, 0]
+    fov_y = 35
+    width = 160
+    height = 160
+"#;
+
+/// Render a white unit sphere seen through [`UNIT_SPHERE_VIEW`] sharp and return the least
+/// coverage of any pixel centre more than 2 px inside its silhouette (radius f·tan(asin(1/4))),
+/// asserting that nothing shows more than 3 px outside it. White on black makes coverage the value.
+pub fn least_coverage_inside_unit_sphere(scene: &Scene) -> f32 {
+    let image = streak::render::render_static(scene, 0.0);
+    let f = scene.camera.focal_px;
+    let radius_px = f * (1.0f64 / 4.0).asin().tan();
+    let (mut inside, mut worst) = (0, 1.0f32);
+    for y in 0..160u32 {
+        for x in 0..160u32 {
+            let d = ((x as f64 + 0.5 - 80.0).powi(2) + (y as f64 + 0.5 - 80.0).powi(2)).sqrt();
+            let value = image.image.pixels[(y * 160 + x) as usize][0];
+            if d < radius_px - 2.0 {
+                inside += 1;
+                worst = worst.min(value);
+            } else if d > radius_px + 3.0 {
+                assert!(
+                    value < 0.01,
+                    "coverage outside the silhouette at ({x}, {y})"
+                );
+            }
+        }
+    }
+    assert!(inside > 10_000);
+    worst
+}
