@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::metrics::ImageError;
+use crate::render::Method;
 use plotters::coord::combinators::{LogCoord, WithKeyPoints};
 use plotters::coord::Shift;
 use plotters::element::DynElement;
@@ -183,10 +184,14 @@ fn render_svg(all_series: &[Series], title: &str) -> DrawResult<String> {
 
         for (index, series) in all_series.iter().enumerate() {
             let coordinates = series.points.iter().map(|p| (p.seconds, p.error.rmse));
-            chart.draw_series(LineSeries::new(
-                coordinates.clone(),
-                series_colour(index).stroke_width(2),
-            ))?;
+            // A line joins one method across its quality knob; hints in different styles are
+            // different pictures, not steps of a knob, so their points stand alone.
+            if series.method != Method::Hint.name() {
+                chart.draw_series(LineSeries::new(
+                    coordinates.clone(),
+                    series_colour(index).stroke_width(2),
+                ))?;
+            }
             chart
                 .draw_series(coordinates.map(|at| EmptyElement::at(at) + marker(index, (0, 0))))?;
         }

@@ -312,3 +312,33 @@ fn every_preset_parses_and_renders_a_small_frame() {
         );
     }
 }
+
+#[test]
+fn twelve_thousand_pixels_of_motion_stay_finite_and_faint() {
+    // The square arrives at the centre from 800 units (≈ 12,000 px) to the left: almost all of
+    // its path is off screen, the plan caps its sub-segments, speed lines are clipped.
+    let camera = camera(200, 80);
+    let arriving = motion(&[
+        (0.0, pose(DVec3::new(-800.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::ZERO, 0.0)),
+    ]);
+    let square = patch(DVec3::ZERO, [1.0, 1.0], 0.04, false);
+    let scene = scene(camera, vec![object(square, arriving)]);
+    let look = style(
+        "[speed_lines]\ndraw = true\nselect = \"sample\"\ncount = 8\ncolour = [1, 0, 0]\nfade = 1\ntaper = 1",
+    );
+    let out = hint(&scene, &look);
+    assert!(out.image.pixels.iter().flatten().all(|c| c.is_finite()));
+    assert!(out.stats.hint.speed_lines >= 1);
+    // Sharp at the flash: the square's middle is white.
+    assert!((value(&out.image, 100, 40) - 1.0).abs() < 1e-3);
+    // Behind it, on its row but clear of the lines' red, the trail's green is the share of the
+    // exposure the 1-unit square covers a pixel: 1/800 (a box shutter). The chained ellipses
+    // of capped sub-segments smooth it but keep it within a factor of two.
+    let expected = 1.0 / 800.0;
+    let p = out.image.pixels[40 * 200 + 30];
+    assert!(
+        f64::from(p[1]) > 0.5 * expected && f64::from(p[1]) < 2.0 * expected,
+        "{p:?} vs {expected}"
+    );
+}

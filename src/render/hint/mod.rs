@@ -188,8 +188,19 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         .fold(0.0, f64::max);
 
     let mut trail_footprints = Vec::new();
-    let mut lines = Vec::new();
-    for ((object, object_plan), views) in scene.objects.iter().zip(&plan.objects).zip(&flash_views)
+    let mut starts = Vec::new();
+    let line_window = before_flash(
+        shutter,
+        flash,
+        style.speed_lines.offset,
+        style.speed_lines.length,
+    );
+    for (index, ((object, object_plan), views)) in scene
+        .objects
+        .iter()
+        .zip(&plan.objects)
+        .zip(&flash_views)
+        .enumerate()
     {
         let ObjectMotion::Moving { segments, .. } = &object_plan.motion else {
             continue;
@@ -226,19 +237,34 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             stats.hint.trail_culled.add(&culled);
             trail_footprints.extend(footprints);
         }
-        if style.speed_lines.draw {
-            lines.extend(object_speed_lines(
+        if style.speed_lines.draw && line_window[1] > line_window[0] {
+            starts.extend(line_starts(
                 scene,
                 &style.speed_lines,
-                object,
-                segments,
-                flash,
+                index,
+                line_window[1],
                 views,
                 &emits,
             ));
         }
     }
-    let lines = pick_lines(lines, &style.speed_lines);
+    let lines: Vec<SpeedLine> = pick_starts(starts, &style.speed_lines)
+        .par_iter()
+        .filter_map(|start| {
+            let ObjectMotion::Moving { segments, .. } = &plan.objects[start.object].motion else {
+                return None;
+            };
+            let object = &scene.objects[start.object];
+            speed_line(
+                scene,
+                &style.speed_lines,
+                object,
+                segments,
+                line_window,
+                start.surfel,
+            )
+        })
+        .collect();
     stats.hint.speed_lines = lines.len();
     let look = &style.speed_lines;
     let line_layer = speed_lines::draw(
@@ -503,32 +529,28 @@ fn styled(
     ellipse
 }
 
-/// Candidate speed lines of one moving object: the projected paths of its emitting points that
-/// the style selects, each with the screen position of its newest end.
-fn object_speed_lines(
+/// Where a speed line could start: the newest end of a point's path on screen.
+struct LineStart {
+    end: DVec2,
+    object: usize,
+    surfel: usize,
+}
+
+/// The newest ends, at time `end_time`, of the paths of the emitting points of object `object`
+/// that the style selects (by how they are seen at the flash, `views`).
+fn line_starts(
     scene: &Scene,
     look: &SpeedLines,
-    object: &Object,
-    segments: &[[f64; 2]],
-    flash: f64,
+    object: usize,
+    end_time: f64,
     views: &[Option<SurfelView>],
     emits: &[bool],
-) -> Vec<SpeedLine> {
-    let camera = &scene.camera;
-    let window = before_flash(&scene.shutter, flash, look.offset, look.length);
-    if !(window[1] > window[0]) {
-        return Vec::new();
-    }
-    let times = times_within(
-        segments,
-        window,
-        (window[1] - window[0]) / LINE_SAMPLES as f64,
-    );
-    let instants: Vec<Instant> = times
-        .iter()
-        .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
-        .collect();
-    let candidates: Vec<usize> = (0..object.surfels.len())
+) -> Vec<LineStart> {
+    let surfels = &scene.objects[object].surfels;
+    let motion = &scene.objects[object].motion;
+    let instant = Instant::new(&scene.camera, &motion.pose_at(end_time));
+    (0..surfels.len())
+        .into_par_iter()
         .filter(|&i| {
             emits[i]
                 && views[i].is_some_and(|v| match look.select {
@@ -536,44 +558,30 @@ fn object_speed_lines(
                     Select::Sample => true,
                 })
         })
-        .collect();
-    candidates
-        .par_iter()
-        .filter_map(|&i| {
-            let points: Vec<DVec2> = instants
-                .iter()
-                .filter_map(|instant| {
-                    view_surfel(camera, instant, &scene.lighting, &object.surfels[i])
-                        .map(|v| v.splat.center)
-                })
-                .collect();
-            (points.len() == instants.len()).then_some(SpeedLine {
-                points,
-                colour: look.colour,
+        .filter_map(|i| {
+            let view = view_surfel(&scene.camera, &instant, &scene.lighting, &surfels[i])?;
+            Some(LineStart {
+                end: view.splat.center,
+                object,
+                surfel: i,
             })
         })
         .collect()
 }
 
-/// At most `look.count` lines whose newest ends are at least `look.spacing` px apart, picked in
-/// an order that is scattered but fixed, so that the same scene always gets the same lines.
-fn pick_lines(mut lines: Vec<SpeedLine>, look: &SpeedLines) -> Vec<SpeedLine> {
-    let key = |line: &SpeedLine| {
-        let end = line.points.last().copied().unwrap_or_default();
-        scatter(end.x.to_bits() ^ end.y.to_bits().rotate_left(32))
-    };
-    lines.sort_by_cached_key(key);
+/// At most `look.count` starts at least `look.spacing` px apart, picked in an order that is
+/// scattered but fixed, so that the same scene always gets the same lines.
+fn pick_starts(mut starts: Vec<LineStart>, look: &SpeedLines) -> Vec<LineStart> {
+    starts.sort_by_cached_key(|s| scatter(s.end.x.to_bits() ^ s.end.y.to_bits().rotate_left(32)));
     let cell = look.spacing.max(1.0);
     let mut taken: std::collections::HashMap<(i64, i64), Vec<DVec2>> =
         std::collections::HashMap::new();
     let mut picked = Vec::new();
-    for line in lines {
+    for start in starts {
         if picked.len() >= look.count as usize {
             break;
         }
-        let Some(&end) = line.points.last() else {
-            continue;
-        };
+        let end = start.end;
         let (cx, cy) = ((end.x / cell).floor() as i64, (end.y / cell).floor() as i64);
         let crowded = (-1..=1).any(|dy| {
             (-1..=1).any(|dx| {
@@ -584,10 +592,47 @@ fn pick_lines(mut lines: Vec<SpeedLine>, look: &SpeedLines) -> Vec<SpeedLine> {
         });
         if !crowded {
             taken.entry((cx, cy)).or_default().push(end);
-            picked.push(line);
+            picked.push(start);
         }
     }
     picked
+}
+
+/// The speed line of one point: its projected path over `window`, oldest first, sampled at the
+/// plan's sub-segment ends and at least [`LINE_SAMPLES`] times. Where the point is behind the
+/// near plane the line stops: it keeps the part next to the object.
+fn speed_line(
+    scene: &Scene,
+    look: &SpeedLines,
+    object: &Object,
+    segments: &[[f64; 2]],
+    window: Window,
+    surfel: usize,
+) -> Option<SpeedLine> {
+    let times = times_within(
+        segments,
+        window,
+        (window[1] - window[0]) / LINE_SAMPLES as f64,
+    );
+    let mut points: Vec<DVec2> = times
+        .iter()
+        .rev()
+        .map_while(|&t| {
+            let instant = Instant::new(&scene.camera, &object.motion.pose_at(t));
+            view_surfel(
+                &scene.camera,
+                &instant,
+                &scene.lighting,
+                &object.surfels[surfel],
+            )
+            .map(|v| v.splat.center)
+        })
+        .collect();
+    points.reverse();
+    (points.len() >= 2).then_some(SpeedLine {
+        points,
+        colour: look.colour,
+    })
 }
 
 /// Whether point `index` is among a `density` share of points, chosen scattered but fixed.
