@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
+use streak::render::Visibility;
 use streak::study::{self, StudyOptions, DEFAULT_TOLERANCE_PX};
 use streak::style::Style;
 use streak::{output, render, Error, Method, Plan, Result, Scene, Settings};
@@ -69,6 +70,12 @@ struct RenderArgs {
     /// Style file for `hint` (default: the scene's `style`, else the built-in default style).
     #[arg(long)]
     style: Option<PathBuf>,
+    /// Equal sub-frames of `kernel3d` (default: the plan's sub-segments).
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=streak::render::MAX_SUBFRAMES as u64))]
+    subframes: Option<usize>,
+    /// `kernel3d` with the paper's GPU approximation of visibility instead of the A-buffer.
+    #[arg(long)]
+    approximate: bool,
     /// Print the plan, and what was left out and why, with counts.
     #[arg(long)]
     explain: bool,
@@ -199,11 +206,23 @@ fn run_render(args: RenderArgs) -> Result<()> {
         Some(path) if args.method == Method::Hint => Some(Arc::new(Style::load(path)?)),
         _ => None,
     };
+    if (args.subframes.is_some() || args.approximate) && args.method != Method::Kernel3d {
+        return Err(Error::Usage(format!(
+            "--subframes and --approximate apply to -m kernel3d only, not -m {}",
+            args.method.name()
+        )));
+    }
     let settings = Settings {
         method: args.method,
         time: args.time,
         samples: args.samples,
         style,
+        subframes: args.subframes,
+        visibility: if args.approximate {
+            Visibility::Approximate
+        } else {
+            Visibility::Exact
+        },
     };
     let progress =
         (args.method == Method::Reference).then(|| bar(args.samples as u64, "reference frames"));
@@ -218,8 +237,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
     }
     if args.explain {
         print!("{}", plan.explain(Some(&out.stats.culled)));
-        if args.method == Method::Hint {
-            print!("{}", out.stats.hint.explain());
+        match args.method {
+            Method::Hint => print!("{}", out.stats.hint.explain()),
+            Method::Kernel3d => print!("{}", out.stats.kernel3d.explain()),
+            _ => {}
         }
         println!(
             "rendered {} footprints in {} frame(s) ({} reused) in {seconds:.3} s; tile lists: {} entries, longest {}",

@@ -41,6 +41,18 @@ impl Instant {
         }
     }
 
+    /// An object-space point in camera space.
+    #[must_use]
+    pub fn view_point(&self, p: DVec3) -> DVec3 {
+        self.to_view.transform_point3(p)
+    }
+
+    /// An object-space vector in camera space.
+    #[must_use]
+    pub fn view_vector(&self, v: DVec3) -> DVec3 {
+        self.to_view.transform_vector3(v)
+    }
+
     /// An object-space unit normal turned into world space.
     #[must_use]
     pub fn world_normal(&self, normal: DVec3) -> DVec3 {
@@ -66,11 +78,11 @@ pub fn view_surfel(
     lighting: &Lighting,
     surfel: &Surfel,
 ) -> Option<SurfelView> {
-    let p_view = instant.to_view.transform_point3(surfel.position);
+    let p_view = instant.view_point(surfel.position);
     let (center, depth) = camera.project(p_view)?;
-    let u_view = instant.to_view.transform_vector3(surfel.axis_u);
-    let v_view = instant.to_view.transform_vector3(surfel.axis_v);
-    let normal_view = instant.to_view.transform_vector3(surfel.normal);
+    let u_view = instant.view_vector(surfel.axis_u);
+    let v_view = instant.view_vector(surfel.axis_v);
+    let normal_view = instant.view_vector(surfel.normal);
     let jacobian = camera.jacobian(p_view);
     let (ju, jv) = (jacobian.apply(u_view), jacobian.apply(v_view));
     // Ratio of the axes' parallelogram areas on screen and in object space = the area scale.

@@ -12,7 +12,7 @@ use crate::metrics::compare;
 use crate::output::{read_exr, write_exr, write_png};
 use crate::plan::Plan;
 use crate::plot::StudyPoint;
-use crate::render::{render, Method, Render, Settings, MAX_SAMPLES};
+use crate::render::{render, Method, Render, Settings, Visibility, MAX_SAMPLES};
 use crate::scene::Scene;
 use crate::style::Style;
 use indicatif::ProgressBar;
@@ -57,6 +57,16 @@ impl Setting {
             Method::Blur => format!("τ={}px", self.tolerance_px),
             Method::Reference => format!("N={}", self.settings.samples),
             Method::Hint => format!("style={}", self.style_name()),
+            Method::Kernel3d => format!(
+                "{}{}",
+                self.settings
+                    .subframes
+                    .map_or_else(|| "plan".to_string(), |n| format!("F={n}")),
+                match self.settings.visibility {
+                    Visibility::Exact => "",
+                    Visibility::Approximate => " approx",
+                }
+            ),
         }
     }
 
@@ -73,6 +83,16 @@ impl Setting {
             Method::Blur => format!("blur-tol{}", self.tolerance_px),
             Method::Reference => format!("reference-n{}", self.settings.samples),
             Method::Hint => format!("hint-{}", self.style_name()),
+            Method::Kernel3d => format!(
+                "kernel3d-{}{}",
+                self.settings
+                    .subframes
+                    .map_or_else(|| "plan".to_string(), |n| format!("f{n}")),
+                match self.settings.visibility {
+                    Visibility::Exact => "",
+                    Visibility::Approximate => "-approx",
+                }
+            ),
         }
     }
 }

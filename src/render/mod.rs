@@ -6,13 +6,17 @@
 //!   buffer), the ground truth every other method is measured against;
 //! - [`Method::Blur`]: one pass of motion ellipses (Guan & Mueller §3.3);
 //! - [`Method::Hint`]: the object sharp at the flash plus a styled trail of motion ellipses
-//!   (Guan & Mueller §3.1, §4).
+//!   (Guan & Mueller §3.1, §4);
+//! - [`Method::Kernel3d`]: 3D spatio-temporal kernels integrated along each pixel ray, with exact
+//!   temporal visibility (Heinzle et al. 2010).
 
 mod blur;
 mod hint;
+mod kernel3d;
 mod reference;
 
 pub use hint::HintStats;
+pub use kernel3d::{KernelStats, Visibility};
 
 use crate::framebuffer::Framebuffer;
 use crate::plan::Plan;
@@ -34,6 +38,8 @@ pub enum Method {
     Reference,
     /// The object sharp at the flash over a styled trail (a motion hint).
     Hint,
+    /// 3D spatio-temporal kernels integrated along pixel rays, with an A-buffer.
+    Kernel3d,
 }
 
 impl Method {
@@ -45,12 +51,16 @@ impl Method {
             Method::Blur => "blur",
             Method::Reference => "reference",
             Method::Hint => "hint",
+            Method::Kernel3d => "kernel3d",
         }
     }
 }
 
 /// Most frames the reference may average (and the study may ask for).
 pub const MAX_SAMPLES: usize = 1 << 16;
+
+/// Most sub-frames `kernel3d` may cut the exposure into.
+pub const MAX_SUBFRAMES: usize = 1024;
 
 /// What to render and at which quality.
 #[derive(Clone, Debug, PartialEq)]
@@ -63,6 +73,10 @@ pub struct Settings {
     pub samples: usize,
     /// The look of `hint` (default: [`Style::default`]).
     pub style: Option<Arc<Style>>,
+    /// Equal sub-frames of `kernel3d` (default: the plan's sub-segments).
+    pub subframes: Option<usize>,
+    /// How `kernel3d` resolves visibility.
+    pub visibility: Visibility,
 }
 
 impl Default for Settings {
@@ -72,6 +86,8 @@ impl Default for Settings {
             time: None,
             samples: 64,
             style: None,
+            subframes: None,
+            visibility: Visibility::Exact,
         }
     }
 }
@@ -93,6 +109,8 @@ pub struct Stats {
     pub tile_entries: usize,
     /// What `hint` left out and drew.
     pub hint: HintStats,
+    /// What `kernel3d` made and held.
+    pub kernel3d: KernelStats,
 }
 
 impl Stats {
@@ -137,6 +155,12 @@ pub fn render(
             Some(style) => hint::render(scene, plan, style),
             None => hint::render(scene, plan, &Style::default()),
         },
+        Method::Kernel3d => kernel3d::render(
+            scene,
+            plan,
+            settings.subframes.map(|n| n.clamp(1, MAX_SUBFRAMES)),
+            settings.visibility,
+        ),
     }
 }
 

@@ -1,0 +1,336 @@
+//! Per-pixel temporal visibility of kernel fragments: the exact A-buffer (Heinzle et al. 2010,
+//! §4.4) and the paper's GPU approximation (§5).
+//!
+//! Time is measured as shutter mass (the exposure's share, 0 to 1), so that every interval's
+//! length is its weight in the picture.
+//!
+//! **Exact.** The fragments' ends cut the exposure into pieces during which the same fragments
+//! cover the pixel. Within a piece each fragment has a depth (its depth interval interpolated),
+//! and fragments are grouped into surfaces by the ternary depth test, nearest first. A surface
+//! covers the piece by α = min(1, Σ coverage / piece), its colour is the coverage-weighted mean
+//! of its fragments' colours, and it hides that share of whatever lies behind it during the
+//! piece; what no surface covers shows the background. Each fragment's coverage over a piece is
+//! the closed-form integral over that sub-interval, so occluded parts of a fragment are removed
+//! exactly where a nearer surface covers, and uncovered time shows the background, weighted by
+//! the shutter. The only approximation is that within one piece a surface's coverage is taken at
+//! its mean.
+//!
+//! **Approximate** (§5.1–5.4): a fragment is kept when its nearest depth is in front of the
+//! visible surface at either end of the sub-frame (two depth buffers); kept fragments are
+//! blended with their whole integrals, normalized, and the background shows outside the
+//! earliest-to-latest covered time [t_min, t_max]. Within that span, coverage below one (the
+//! silhouette's anti-aliasing) still lets the background through, as in the exact mode, so that
+//! the study measures only what the visibility approximation costs.
+
+use super::kernel::Fragment;
+
+/// Shortest piece, as a share of the window: fragment ends closer than this are merged, so that a
+/// pixel crossed by many short fragments is cut into at most a few thousand pieces. Within a
+/// piece each fragment's coverage is still integrated exactly over its own part of it; only
+/// where surfaces occlude each other is the order taken once per piece.
+const MIN_PIECE: f64 = 1.0 / 512.0;
+
+/// Once this share of a piece is left unoccluded, farther surfaces cannot change an 8-bit value.
+const OPAQUE_REMAINDER: f64 = 1e-4;
+
+/// A resolved pixel: premultiplied colour and the share of the window showing the background.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Resolved {
+    pub colour: [f64; 3],
+    pub background: f64,
+}
+
+/// Exact temporal visibility of `fragments` over the shutter-mass window `window`.
+///
+/// Pieces in which every active fragment belongs to one surface need no occlusion test: a run of
+/// such pieces is composited as one span, each fragment's coverage over it integrated in one
+/// closed-form difference. Only pieces where two or more surfaces overlap are resolved one by
+/// one. (Within one surface the run's coverage is taken at its mean, as a piece's is.)
+pub(super) fn resolve_exact(fragments: &mut [Fragment], window: [f64; 2]) -> Resolved {
+    let mut out = Resolved::default();
+    if one_surface(fragments) {
+        // No fragment can ever hide another: the whole window is one run.
+        let (mut weight, mut colour) = (0.0, [0.0; 3]);
+        for f in fragments.iter() {
+            let w = f.cumulative(f.mass[1]) - f.cumulative(f.mass[0]);
+            weight += w;
+            for (c, v) in colour.iter_mut().zip(f.colour) {
+                *c += w * f64::from(v);
+            }
+        }
+        let length = window[1] - window[0];
+        out.background = composite(weight, colour, length, 1.0, &mut out) * length;
+        return out;
+    }
+    let mut cuts: Vec<f64> = Vec::with_capacity(2 * fragments.len() + 2);
+    cuts.extend(window);
+    for f in fragments.iter() {
+        cuts.extend(f.mass);
+    }
+    cuts.sort_unstable_by(f64::total_cmp);
+    cuts.dedup();
+    merge_cuts(&mut cuts, (window[1] - window[0]) * MIN_PIECE);
+    // Fragments by start, so that the active set is swept in order.
+    fragments.sort_unstable_by(|a, b| {
+        a.mass[0]
+            .total_cmp(&b.mass[0])
+            .then(a.kernel.cmp(&b.kernel))
+    });
+    let fragments: &[Fragment] = fragments;
+    let mut cache = Cumulative::new(fragments);
+    let mut run = Run::new(fragments.len());
+    let mut next = 0;
+    // Active fragments with their depth in the current piece.
+    let mut active: Vec<(f64, usize)> = Vec::new();
+    for piece in cuts.windows(2) {
+        let (m0, m1) = (piece[0], piece[1]);
+        if !(m1 > m0) {
+            continue;
+        }
+        while next < fragments.len() && fragments[next].mass[0] < m1 {
+            active.push((0.0, next));
+            next += 1;
+        }
+        active.retain(|&(_, i)| fragments[i].mass[1] > m0);
+        let mid = 0.5 * (m0 + m1);
+        let (mut near, mut far, mut tolerance) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY);
+        for entry in active.iter_mut() {
+            let f = &fragments[entry.1];
+            entry.0 = f.depth_at(mid.clamp(f.mass[0], f.mass[1]));
+            near = near.min(entry.0);
+            far = far.max(entry.0);
+            tolerance = tolerance.min(f.tolerance);
+        }
+        // Within the smallest tolerance of each other, all active fragments are one surface
+        // (the ternary test, which compares each with the nearest, would say so too).
+        if far - near <= tolerance {
+            run.extend(m0, &active);
+            continue;
+        }
+        run.close(m0, &mut cache, &mut out);
+        active.sort_unstable_by(|&a, &b| nearer(a, b, fragments));
+        // Surfaces front to back; coverage is integrated only until the piece is opaque.
+        let length = m1 - m0;
+        let mut transmittance = 1.0;
+        let mut start = 0;
+        while start < active.len() && transmittance > OPAQUE_REMAINDER {
+            let end = same_surface_end(&active, start, fragments);
+            let (mut weight, mut colour) = (0.0, [0.0; 3]);
+            for &(_, i) in &active[start..end] {
+                let [f0, f1] = fragments[i].mass;
+                let w = cache.over(i, m0.max(f0), m1.min(f1));
+                weight += w;
+                for (c, v) in colour.iter_mut().zip(fragments[i].colour) {
+                    *c += w * f64::from(v);
+                }
+            }
+            transmittance *= composite(weight, colour, length, transmittance, &mut out);
+            start = end;
+        }
+        out.background += transmittance * length;
+    }
+    run.close(window[1], &mut cache, &mut out);
+    out
+}
+
+/// Add a surface of coverage `weight` (× mass) and weighted colour sum `colour` over a span of
+/// mass `length` behind `transmittance`; returns the share of what lies behind that still shows.
+fn composite(
+    weight: f64,
+    colour: [f64; 3],
+    length: f64,
+    transmittance: f64,
+    out: &mut Resolved,
+) -> f64 {
+    if !(weight > 0.0) {
+        return 1.0;
+    }
+    let alpha = (weight / length).min(1.0);
+    let k = transmittance * alpha * length / weight;
+    for (o, c) in out.colour.iter_mut().zip(colour) {
+        *o += k * c;
+    }
+    1.0 - alpha
+}
+
+/// Drop cuts closer than `gap` to the previous kept one (the window's ends are kept).
+fn merge_cuts(cuts: &mut Vec<f64>, gap: f64) {
+    let Some(&last) = cuts.last() else {
+        return;
+    };
+    let mut kept = 0;
+    for i in 0..cuts.len() {
+        let c = cuts[i];
+        if i == 0 || (c - cuts[kept - 1] >= gap && last - c >= gap) || c == last {
+            cuts[kept] = c;
+            kept += 1;
+        }
+    }
+    cuts.truncate(kept);
+}
+
+/// Whether all fragments lie within one surface's depth tolerance of each other whenever they
+/// meet: true when their depth ranges, widened by their tolerances, chain into one cluster whose
+/// whole extent is within the tolerance of its nearest point (so any two of them pass the ternary
+/// test at any time).
+fn one_surface(fragments: &[Fragment]) -> bool {
+    let mut near = f64::INFINITY;
+    let mut far = f64::NEG_INFINITY;
+    let mut tolerance = f64::INFINITY;
+    for f in fragments {
+        near = near.min(f.depth[0].min(f.depth[1]));
+        far = far.max(f.depth[0].max(f.depth[1]));
+        tolerance = tolerance.min(f.tolerance);
+    }
+    fragments.is_empty() || far - near <= tolerance
+}
+
+/// The end of the surface that starts at `active[start]`: every following fragment within the
+/// depth tolerance of that nearest one (the ternary depth test).
+fn same_surface_end(active: &[(f64, usize)], start: usize, fragments: &[Fragment]) -> usize {
+    let Some(&(front, first)) = active.get(start) else {
+        return start;
+    };
+    let tolerance = fragments[first].tolerance;
+    let mut end = start;
+    while end < active.len()
+        && active[end].0 - front <= tolerance.max(fragments[active[end].1].tolerance)
+    {
+        end += 1;
+    }
+    end
+}
+
+/// Each fragment's cumulative coverage at the last cut it was evaluated at: a fragment seen
+/// over consecutive spans costs one closed-form evaluation per span.
+struct Cumulative<'a> {
+    fragments: &'a [Fragment],
+    last: Vec<(f64, f64)>,
+}
+
+impl<'a> Cumulative<'a> {
+    fn new(fragments: &'a [Fragment]) -> Self {
+        Cumulative {
+            fragments,
+            last: vec![(f64::NAN, 0.0); fragments.len()],
+        }
+    }
+
+    /// Cumulative coverage of fragment `i` at `m`.
+    fn at(&mut self, i: usize, m: f64) -> f64 {
+        if self.last[i].0 == m {
+            return self.last[i].1;
+        }
+        let value = self.fragments[i].cumulative(m);
+        self.last[i] = (m, value);
+        value
+    }
+
+    /// Coverage × mass of fragment `i` over [m0, m1] (within its interval).
+    fn over(&mut self, i: usize, m0: f64, m1: f64) -> f64 {
+        let start = self.at(i, m0);
+        self.at(i, m1) - start
+    }
+}
+
+/// A run of pieces with a single surface: where it starts, and the fragments seen in it with
+/// where each entered.
+struct Run {
+    start: Option<f64>,
+    members: Vec<(usize, f64)>,
+    /// Per fragment, the number of the run it last joined (runs are numbered from 1).
+    joined: Vec<u32>,
+    number: u32,
+}
+
+impl Run {
+    fn new(fragments: usize) -> Self {
+        Run {
+            start: None,
+            members: Vec::new(),
+            joined: vec![0; fragments],
+            number: 1,
+        }
+    }
+
+    fn extend(&mut self, m0: f64, active: &[(f64, usize)]) {
+        self.start.get_or_insert(m0);
+        for &(_, i) in active {
+            if self.joined[i] != self.number {
+                self.joined[i] = self.number;
+                self.members.push((i, m0));
+            }
+        }
+    }
+
+    /// Composite the run over [start, `m`] as one surface.
+    fn close(&mut self, m: f64, cache: &mut Cumulative, out: &mut Resolved) {
+        let Some(start) = self.start.take() else {
+            return;
+        };
+        let (mut weight, mut colour) = (0.0, [0.0; 3]);
+        for &(i, entered) in &self.members {
+            let f = &cache.fragments[i];
+            let w = cache.over(i, entered.max(f.mass[0]), m.min(f.mass[1]));
+            weight += w;
+            for (c, v) in colour.iter_mut().zip(f.colour) {
+                *c += w * f64::from(v);
+            }
+        }
+        let length = m - start;
+        let transmittance = composite(weight, colour, length, 1.0, out);
+        out.background += transmittance * length;
+        self.members.clear();
+        self.number += 1;
+    }
+}
+
+/// Depth order of active fragments, the kernel index breaking ties (a total order, so the
+/// result does not depend on the order fragments arrived in).
+fn nearer(a: (f64, usize), b: (f64, usize), fragments: &[Fragment]) -> std::cmp::Ordering {
+    a.0.total_cmp(&b.0)
+        .then(fragments[a.1].kernel.cmp(&fragments[b.1].kernel))
+}
+
+/// The GPU approximation over the sub-frame `window`: `visible_depth` is the visible surface's
+/// depth at the sub-frame's start and end (+∞ where nothing covers the pixel then). Fragments
+/// reaching beyond the window (those of still objects) count with their part inside it.
+pub(super) fn resolve_approximate(
+    fragments: &[Fragment],
+    window: [f64; 2],
+    visible_depth: [f32; 2],
+) -> Resolved {
+    let (mut weight, mut colour) = (0.0, [0.0; 3]);
+    let (mut first, mut last) = (f64::INFINITY, f64::NEG_INFINITY);
+    for f in fragments {
+        let Some((w, [m0, m1])) = f.within(window) else {
+            continue;
+        };
+        let nearest = f.depth_at(m0).min(f.depth_at(m1));
+        let visible = visible_depth
+            .iter()
+            .any(|&d| nearest <= f64::from(d) + f.tolerance);
+        if !visible {
+            continue;
+        }
+        weight += w;
+        for (c, v) in colour.iter_mut().zip(f.colour) {
+            *c += w * f64::from(v);
+        }
+        first = first.min(m0);
+        last = last.max(m1);
+    }
+    let length = window[1] - window[0];
+    if !(weight > 0.0 && last > first) {
+        return Resolved {
+            colour: [0.0; 3],
+            background: length,
+        };
+    }
+    let span = last - first;
+    let covered = span * (weight / span).min(1.0);
+    Resolved {
+        colour: colour.map(|c| c * covered / weight),
+        background: length - covered,
+    }
+}

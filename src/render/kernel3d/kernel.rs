@@ -1,0 +1,418 @@
+//! The 3D spatio-temporal kernel of one surfel over one sub-frame (Heinzle et al. 2010, §4.1,
+//! Fig. 3), its screen bound (§4.3, Fig. 5), and its fragment on one pixel ray (§4.2).
+//!
+//! The kernel is spanned by the splat axes a1, a2 and the motion axis a3 = m/2 (half the
+//! sub-frame's motion m, so that kernel time s ∈ [−1, 1] spans the sub-frame): at time s the
+//! splat sits at c + s·a3. Everything is in camera space and f64.
+
+use super::integral::{Primitive, RayQuadratic};
+use crate::camera::Camera;
+use crate::raster::{CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2, TRUNCATION_GAIN};
+use glam::{DVec2, DVec3};
+
+/// Squared cut-off radius of the kernel's cylinder, in standard deviations (as the rasterizer's).
+const CUTOFF_SQ: f64 = CUTOFF_SIGMAS * CUTOFF_SIGMAS;
+
+/// Most an axis is enlarged by the object-space pre-filter: an axis seen almost end-on would
+/// otherwise be stretched without bound to cover a pixel (Heinzle §5.2's "minimum angle").
+const MAX_PREFILTER_STRETCH: f64 = 1e3;
+
+/// Below this |cos| between the splat normal and a pixel ray, the ray runs along the splat plane:
+/// the splat covers no area there, and the intersection would divide by ~0.
+const MIN_RAY_COSINE: f64 = 1e-9;
+
+/// Points projected around each end's cut-off ellipse to bound it on screen; the bound is
+/// widened by [`BOUND_MARGIN`] for the arcs between them (1 − cos(π/16) < 2 %).
+const BOUND_SAMPLES: usize = 16;
+const BOUND_MARGIN: f64 = 0.02;
+
+/// One surfel's kernel over one sub-frame.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Kernel {
+    /// Splat centre at the sub-frame's middle (the chord's midpoint), camera space.
+    pub centre: DVec3,
+    /// a3: half the sub-frame's motion.
+    pub half_motion: DVec3,
+    /// a1, a2: the splat axes (σ-scaled), enlarged by the object-space pre-filter (§4.1).
+    pub axes: [DVec3; 2],
+    /// Coverage density at the splat centre: area / (2π |a1 × a2|), times the truncation gain.
+    pub amplitude: f64,
+    /// Shaded linear RGB at the sub-frame's middle.
+    pub colour: [f32; 3],
+    /// The sub-frame's interval on the shutter-mass axis.
+    pub mass: [f64; 2],
+    /// Depth distance within which another fragment counts as the same surface.
+    pub tolerance: f64,
+}
+
+/// What a kernel leaves on one pixel: the part of its time on the ray and how it weighs.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Fragment {
+    /// The covered interval on the shutter-mass axis.
+    pub mass: [f64; 2],
+    /// The kernel's own interval on that axis (maps mass to kernel time s).
+    kernel_mass: [f64; 2],
+    /// Antiderivative of the kernel along the ray, in kernel time.
+    primitive: Primitive,
+    /// Coverage density at the splat centre × shutter mass per unit of kernel time.
+    scale: f64,
+    /// Depth along the ray at the interval's ends.
+    pub depth: [f64; 2],
+    /// Linear RGB.
+    pub colour: [f32; 3],
+    /// Depth distance within which another fragment counts as the same surface.
+    pub tolerance: f64,
+    /// Kernel index: a total order for ties.
+    pub kernel: u32,
+}
+
+impl Fragment {
+    /// Kernel time at shutter mass `m`.
+    fn time(&self, m: f64) -> f64 {
+        let [k0, k1] = self.kernel_mass;
+        -1.0 + 2.0 * (m - k0) / (k1 - k0)
+    }
+
+    /// Coverage × shutter mass from the start of the kernel's time to `m` (within the
+    /// fragment's interval), up to a constant: differences are the closed-form integral of the
+    /// kernel along the ray over that part of its time (§4.2).
+    pub fn cumulative(&self, m: f64) -> f64 {
+        self.scale * self.primitive.at(self.time(m))
+    }
+
+    /// Coverage × mass over the part of the fragment within `window`, and that part's interval.
+    pub fn within(&self, window: [f64; 2]) -> Option<(f64, [f64; 2])> {
+        let (m0, m1) = (self.mass[0].max(window[0]), self.mass[1].min(window[1]));
+        (m1 > m0).then(|| (self.cumulative(m1) - self.cumulative(m0), [m0, m1]))
+    }
+
+    /// Depth along the ray at shutter mass `m`.
+    pub fn depth_at(&self, m: f64) -> f64 {
+        let [m0, m1] = self.mass;
+        if m1 > m0 {
+            self.depth[0] + (self.depth[1] - self.depth[0]) * ((m - m0) / (m1 - m0))
+        } else {
+            self.depth[0]
+        }
+    }
+}
+
+/// The plane and dual basis of a kernel, made once per kernel and tile.
+pub(super) struct Prepared<'a> {
+    kernel: &'a Kernel,
+    normal: DVec3,
+    dual: [DVec3; 2],
+    index: u32,
+}
+
+impl Kernel {
+    /// The kernel of a splat seen at the sub-frame's start (`p0`) and end (`p1`) with camera-space
+    /// axes `axes` at its middle; `None` when it has no area.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        camera: &Camera,
+        p0: DVec3,
+        p1: DVec3,
+        axes: [DVec3; 2],
+        area: f64,
+        colour: [f32; 3],
+        mass: [f64; 2],
+    ) -> Option<Kernel> {
+        let centre = 0.5 * (p0 + p1);
+        let depth = -centre.z;
+        if !(depth > 0.0) {
+            return None;
+        }
+        // §4.1: the screen pre-filter stood in for in object space. Each axis is lengthened so that
+        // its projected length² grows by the pre-filter's variance (in px²), as Σ + σ_f² I does
+        // along that axis for the screen-space EWA splat.
+        let jacobian = camera.jacobian(centre);
+        let axes = axes.map(|axis| {
+            let length_sq = jacobian.apply(axis).length_squared();
+            let stretch = ((length_sq + PREFILTER_VARIANCE_PX2) / length_sq).sqrt();
+            axis * if stretch.is_finite() {
+                stretch.min(MAX_PREFILTER_STRETCH)
+            } else {
+                MAX_PREFILTER_STRETCH
+            }
+        });
+        let spread = axes[0].cross(axes[1]).length();
+        let amplitude = TRUNCATION_GAIN * area / (std::f64::consts::TAU * spread);
+        let kernel = Kernel {
+            centre,
+            half_motion: 0.5 * (p1 - p0),
+            axes,
+            amplitude,
+            colour,
+            mass,
+            tolerance: CUTOFF_SIGMAS * axes[0].length().max(axes[1].length()),
+        };
+        (amplitude.is_finite()
+            && amplitude > 0.0
+            && centre.is_finite()
+            && kernel.half_motion.is_finite())
+        .then_some(kernel)
+    }
+
+    /// Pixel bounds [x0, y0, x1, y1) of the kernel's cylinder, clipped to the image, and the
+    /// convex hull of its two end ellipses' bounding boxes (§4.3, Fig. 5); `None` when off-screen.
+    /// A kernel reaching behind the near plane is bounded by the whole image.
+    pub fn screen_bound(&self, camera: &Camera) -> Option<([u32; 4], Vec<DVec2>)> {
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        let mut boxes = [[
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ]; 2];
+        for (end, bound) in boxes.iter_mut().enumerate() {
+            let centre = self.centre + self.half_motion * if end == 0 { -1.0 } else { 1.0 };
+            for i in 0..BOUND_SAMPLES {
+                let angle = std::f64::consts::TAU * i as f64 / BOUND_SAMPLES as f64;
+                let p = centre
+                    + CUTOFF_SIGMAS
+                        * (1.0 + BOUND_MARGIN)
+                        * (self.axes[0] * angle.cos() + self.axes[1] * angle.sin());
+                let Some((px, _)) = camera.project(p) else {
+                    let hull = vec![
+                        DVec2::ZERO,
+                        DVec2::new(w, 0.0),
+                        DVec2::new(w, h),
+                        DVec2::new(0.0, h),
+                    ];
+                    return Some(([0, 0, camera.width, camera.height], hull));
+                };
+                *bound = [
+                    bound[0].min(px.x - 1.0),
+                    bound[1].min(px.y - 1.0),
+                    bound[2].max(px.x + 1.0),
+                    bound[3].max(px.y + 1.0),
+                ];
+            }
+        }
+        let union = [
+            boxes[0][0].min(boxes[1][0]),
+            boxes[0][1].min(boxes[1][1]),
+            boxes[0][2].max(boxes[1][2]),
+            boxes[0][3].max(boxes[1][3]),
+        ];
+        let clip = |v: f64, max: f64| v.clamp(0.0, max) as u32;
+        let bounds = [
+            clip(union[0].floor(), w),
+            clip(union[1].floor(), h),
+            clip(union[2].ceil(), w),
+            clip(union[3].ceil(), h),
+        ];
+        (bounds[0] < bounds[2] && bounds[1] < bounds[3])
+            .then(|| (bounds, hull_of_boxes(boxes[0], boxes[1])))
+    }
+
+    /// The plane and dual basis for evaluating rays; `index` names the kernel in fragments.
+    pub fn prepare(&self, index: u32) -> Prepared<'_> {
+        let [a1, a2] = self.axes;
+        let normal = a1.cross(a2);
+        // Dual basis: (x·dual[i]) is x's coordinate along axis i, for x in the splat plane.
+        let d1 = a2.cross(normal);
+        let d2 = normal.cross(a1);
+        Prepared {
+            kernel: self,
+            normal,
+            dual: [d1 / a1.dot(d1), d2 / a2.dot(d2)],
+            index,
+        }
+    }
+}
+
+impl Prepared<'_> {
+    /// The fragment the kernel leaves on the camera-space ray with direction `ray` (z = −1, so
+    /// the ray parameter is the depth), in front of `near`; `None` when the ray misses the
+    /// kernel's cylinder.
+    pub fn fragment(&self, ray: DVec3, near: f64) -> Option<Fragment> {
+        let k = self.kernel;
+        let along = self.normal.dot(ray);
+        if !(along.abs() > MIN_RAY_COSINE * self.normal.length() * ray.length()) {
+            return None;
+        }
+        // Depth of the hit at kernel time s: λ(s) = n·(c + s a3) / n·d, affine in s.
+        let depth0 = self.normal.dot(k.centre) / along;
+        let depth1 = self.normal.dot(k.half_motion) / along;
+        // Splat coordinates of the hit: (λ(s) d − c − s a3)·dual, affine in s: p + s q.
+        let coordinate = |dual: DVec3| {
+            let ray_dual = ray.dot(dual);
+            (
+                depth0 * ray_dual - k.centre.dot(dual),
+                depth1 * ray_dual - k.half_motion.dot(dual),
+            )
+        };
+        let (u0, u1) = coordinate(self.dual[0]);
+        let (v0, v1) = coordinate(self.dual[1]);
+        let quadratic = RayQuadratic {
+            a: u1 * u1 + v1 * v1,
+            b: u0 * u1 + v0 * v1,
+            c: u0 * u0 + v0 * v0,
+        };
+        // The part of the kernel's time [−1, 1] in front of the near plane.
+        let [k0, k1] = k.mass;
+        let (mut lo, mut hi) = (-1.0f64, 1.0f64);
+        if depth1 != 0.0 {
+            let crossing = (near - depth0) / depth1;
+            if depth1 > 0.0 {
+                lo = lo.max(crossing);
+            } else {
+                hi = hi.min(crossing);
+            }
+        } else if !(depth0 >= near) {
+            return None;
+        }
+        let [s0, s1] = quadratic.support(CUTOFF_SQ, lo, hi)?;
+        let to_mass = |s: f64| k0 + 0.5 * (s + 1.0) * (k1 - k0);
+        let fragment = Fragment {
+            mass: [to_mass(s0), to_mass(s1)],
+            kernel_mass: k.mass,
+            primitive: quadratic.primitive([s0, s1]),
+            scale: k.amplitude * 0.5 * (k1 - k0),
+            depth: [depth0 + s0 * depth1, depth0 + s1 * depth1],
+            colour: k.colour,
+            tolerance: k.tolerance
+                / (along.abs() / (self.normal.length() * ray.length())).max(0.05),
+            kernel: self.index,
+        };
+        (fragment.mass[1] > fragment.mass[0] && fragment.depth.iter().all(|d| d.is_finite()))
+            .then_some(fragment)
+    }
+}
+
+/// The convex hull of two axis-aligned boxes [x0, y0, x1, y1], counter-clockwise in screen
+/// coordinates (§4.3, Fig. 5): each corner of one box is kept unless it lies in the inside quadrant
+/// of the other box's corresponding corner.
+fn hull_of_boxes(a: [f64; 4], b: [f64; 4]) -> Vec<DVec2> {
+    // Corners in order: top-left, bottom-left, bottom-right, top-right, each with the direction
+    // pointing out of the box there.
+    let corners = |r: [f64; 4]| {
+        [
+            DVec2::new(r[0], r[1]),
+            DVec2::new(r[0], r[3]),
+            DVec2::new(r[2], r[3]),
+            DVec2::new(r[2], r[1]),
+        ]
+    };
+    const OUT: [DVec2; 4] = [
+        DVec2::new(-1.0, -1.0),
+        DVec2::new(-1.0, 1.0),
+        DVec2::new(1.0, 1.0),
+        DVec2::new(1.0, -1.0),
+    ];
+    let (ca, cb) = (corners(a), corners(b));
+    let mut hull = Vec::with_capacity(8);
+    for i in 0..4 {
+        let (p, q, out) = (ca[i], cb[i], OUT[i]);
+        // p is inside q's quadrant when it is not farther out than q along both axes.
+        let p_inside = (p.x - q.x) * out.x <= 0.0 && (p.y - q.y) * out.y <= 0.0;
+        let q_inside = (q.x - p.x) * out.x <= 0.0 && (q.y - p.y) * out.y <= 0.0;
+        match (p_inside, q_inside) {
+            (true, _) => hull.push(q),
+            (false, true) => hull.push(p),
+            // Neither dominates: both are on the hull, in the order that keeps it convex.
+            (false, false) => {
+                let ordered = if (q - p).perp_dot(out) > 0.0 {
+                    [p, q]
+                } else {
+                    [q, p]
+                };
+                hull.extend(ordered);
+            }
+        }
+    }
+    hull
+}
+
+/// Whether the convex polygon `hull` overlaps the rectangle [x0, y0, x1, y1] (separating axes).
+pub(super) fn hull_overlaps(hull: &[DVec2], rect: [f64; 4]) -> bool {
+    let xs = hull.iter().map(|p| p.x);
+    let ys = hull.iter().map(|p| p.y);
+    if xs.clone().fold(f64::INFINITY, f64::min) > rect[2]
+        || xs.fold(f64::NEG_INFINITY, f64::max) < rect[0]
+        || ys.clone().fold(f64::INFINITY, f64::min) > rect[3]
+        || ys.fold(f64::NEG_INFINITY, f64::max) < rect[1]
+    {
+        return false;
+    }
+    let corners = [
+        DVec2::new(rect[0], rect[1]),
+        DVec2::new(rect[2], rect[1]),
+        DVec2::new(rect[2], rect[3]),
+        DVec2::new(rect[0], rect[3]),
+    ];
+    for i in 0..hull.len() {
+        let (p, q) = (hull[i], hull[(i + 1) % hull.len()]);
+        let normal = (q - p).perp();
+        let side = |c: DVec2| (c - p).dot(normal);
+        let inside_sign = hull
+            .iter()
+            .map(|&v| side(v))
+            .find(|s| s.abs() > 1e-9)
+            .unwrap_or(0.0);
+        if inside_sign != 0.0 && corners.iter().all(|&c| side(c) * inside_sign < 0.0) {
+            return false;
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn is_convex_and_contains(hull: &[DVec2], points: &[DVec2]) -> bool {
+        let n = hull.len();
+        let mut sign = 0.0;
+        for i in 0..n {
+            let (p, q) = (hull[i], hull[(i + 1) % n]);
+            for &x in points.iter().chain(hull) {
+                let s = (q - p).perp_dot(x - p);
+                if s.abs() < 1e-9 {
+                    continue;
+                }
+                if sign == 0.0 {
+                    sign = s.signum();
+                } else if s.signum() != sign {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    #[test]
+    fn the_hull_of_two_boxes_is_convex_and_contains_both() {
+        let cases = [
+            ([0.0, 0.0, 2.0, 1.0], [5.0, 4.0, 7.0, 5.0]),
+            ([5.0, 4.0, 7.0, 5.0], [0.0, 0.0, 2.0, 1.0]),
+            ([0.0, 4.0, 2.0, 5.0], [5.0, 0.0, 7.0, 1.0]),
+            ([0.0, 0.0, 4.0, 4.0], [1.0, 1.0, 2.0, 2.0]),
+            ([0.0, 0.0, 4.0, 1.0], [1.0, -3.0, 2.0, 5.0]),
+        ];
+        for (a, b) in cases {
+            let hull = hull_of_boxes(a, b);
+            let corners: Vec<DVec2> = [a, b]
+                .iter()
+                .flat_map(|r| {
+                    [
+                        DVec2::new(r[0], r[1]),
+                        DVec2::new(r[2], r[1]),
+                        DVec2::new(r[2], r[3]),
+                        DVec2::new(r[0], r[3]),
+                    ]
+                })
+                .collect();
+            assert!(
+                is_convex_and_contains(&hull, &corners),
+                "{a:?} {b:?}: {hull:?}"
+            );
+        }
+        // Diagonal boxes: the hull is tighter than their union's bounding box.
+        let hull = hull_of_boxes([0.0, 0.0, 1.0, 1.0], [9.0, 9.0, 10.0, 10.0]);
+        assert!(!hull_overlaps(&hull, [8.0, 0.0, 10.0, 2.0]));
+        assert!(hull_overlaps(&hull, [4.0, 4.0, 6.0, 6.0]));
+    }
+}
