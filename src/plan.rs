@@ -6,6 +6,11 @@
 //! within the pixel tolerance of its chord (Guan & Mueller §6 ask for bent trails under rotation)
 //! and every sub-segment shorter than [`SEGMENT_LENGTH_PER_TOLERANCE`] × tolerance; a scene with
 //! no light runs no shading. `explain` turns the plan and the render's counts into text.
+//!
+//! A path that crosses the near plane never holds the tolerance (its screen path is unbounded), so
+//! its keyframe interval is cut into [`MAX_SEGMENTS_PER_INTERVAL`] pieces: the motion renderers
+//! drop a piece with an end behind the near plane, and this narrows what they drop from the whole
+//! interval to the piece around the crossing.
 
 use crate::camera::Camera;
 use crate::project::Culled;
@@ -209,18 +214,25 @@ fn measure(
     let (mut deviation, mut longest) = (0.0f64, 0.0f64);
     for [a, b] in pieces(t0, t1, k) {
         for &probe in probes {
-            let (Some(pa), Some(pb)) = (
+            let (pa, pb) = (
                 screen_at(camera, object, probe, a),
                 screen_at(camera, object, probe, b),
-            ) else {
+            );
+            let (Some(pa), Some(pb)) = (pa, pb) else {
+                // A path that crosses the near plane runs off to infinity on screen: no chord
+                // stands for it, and the renderers drop the piece, so it must be cut finer.
+                if pa.is_some() != pb.is_some() {
+                    deviation = f64::INFINITY;
+                }
                 continue;
             };
             longest = longest.max(pa.distance(pb));
             for s in 1..DEVIATION_SAMPLES {
                 let t = a + (b - a) * s as f64 / DEVIATION_SAMPLES as f64;
-                if let Some(p) = screen_at(camera, object, probe, t) {
-                    deviation = deviation.max(distance_to_segment(p, pa, pb));
-                }
+                deviation = match screen_at(camera, object, probe, t) {
+                    Some(p) => deviation.max(distance_to_segment(p, pa, pb)),
+                    None => f64::INFINITY,
+                };
             }
         }
     }

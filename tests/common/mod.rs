@@ -83,6 +83,16 @@ pub fn motion(keys: &[(f64, Pose)]) -> Motion {
         .expect("sorted keyframes")
 }
 
+/// No motion at all: the object stays where its surfels are.
+pub fn still() -> Motion {
+    motion(&[(0.0, pose(DVec3::ZERO, 0.0))])
+}
+
+/// A uniform translation from `from` at t = 0 to `to` at t = 1.
+pub fn linear(from: DVec3, to: DVec3) -> Motion {
+    motion(&[(0.0, pose(from, 0.0)), (1.0, pose(to, 0.0))])
+}
+
 pub fn object(surfels: Vec<Surfel>, motion: Motion) -> Object {
     Object {
         name: "test".into(),
@@ -99,6 +109,11 @@ pub fn draw(scene: &Scene, method: Method, tolerance_px: f64, samples: usize) ->
         ..Settings::default()
     };
     render(scene, &plan, &settings, None).image
+}
+
+/// Σ of the red channel: for white surfels on black, the area covered in px².
+pub fn energy(image: &Framebuffer) -> f64 {
+    image.pixels.iter().map(|p| f64::from(p[0])).sum()
 }
 
 /// Red channel of every pixel.
