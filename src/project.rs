@@ -117,7 +117,7 @@ pub fn view_surfel(
 /// and ∂D/∂y = D² n_y / (f n·p). Near edge-on (n·p → 0) the plane is steep and the splat carries
 /// almost no weight; the gradient is capped at a thousand disc depths per pixel so that it stays
 /// finite.
-fn plane_depth_gradient(
+pub(crate) fn plane_depth_gradient(
     camera: &Camera,
     p_view: DVec3,
     normal_view: DVec3,

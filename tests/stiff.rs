@@ -20,6 +20,7 @@ const METHODS: &[Method] = &[
     Method::Blur,
     Method::Reference,
     Method::Hint,
+    Method::Kernel3d,
 ];
 
 /// Frames of the reference in [`METHODS`]: few, as a user in a hurry would ask for. A power of

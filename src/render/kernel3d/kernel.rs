@@ -7,19 +7,27 @@
 
 use super::integral::{Primitive, RayQuadratic};
 use crate::camera::Camera;
+use crate::project::plane_depth_gradient;
 use crate::raster::{CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2, TRUNCATION_GAIN};
 use glam::{DVec2, DVec3};
 
 /// Squared cut-off radius of the kernel's cylinder, in standard deviations (as the rasterizer's).
 const CUTOFF_SQ: f64 = CUTOFF_SIGMAS * CUTOFF_SIGMAS;
 
-/// Most an axis is enlarged by the object-space pre-filter: an axis seen almost end-on would
-/// otherwise be stretched without bound to cover a pixel (Heinzle §5.2's "minimum angle").
-const MAX_PREFILTER_STRETCH: f64 = 1e3;
+/// Most the object-space pre-filter may enlarge a splat axis before the kernel is evaluated with
+/// the affine (EWA) map instead. A splat seen nearly edge-on would have to be stretched across
+/// a long stretch of its plane, which then runs almost along the pixel rays: the ray–plane
+/// intersection becomes singular within a pixel, and the stretched splat reaches depths where
+/// the projection at its centre no longer describes it (measured: 17× too much light from a square
+/// tilted 0.01 rad from edge-on). Heinzle §5.2 meets the same trouble with a minimum angle.
+const MAX_PREFILTER_STRETCH: f64 = 2.0;
 
 /// Below this |cos| between the splat normal and a pixel ray, the ray runs along the splat plane:
 /// the splat covers no area there, and the intersection would divide by ~0.
 const MIN_RAY_COSINE: f64 = 1e-9;
+
+/// The depth tolerance grows as the ray grazes the splat, up to this cosine (20×).
+const MIN_TOLERANCE_COSINE: f64 = 0.05;
 
 /// Points projected around each end's cut-off ellipse to bound it on screen; the bound is
 /// widened by [`BOUND_MARGIN`] for the arcs between them (1 − cos(π/16) < 2 %).
@@ -43,6 +51,28 @@ pub(super) struct Kernel {
     pub mass: [f64; 2],
     /// Depth distance within which another fragment counts as the same surface.
     pub tolerance: f64,
+    /// The screen-space stand-in for a splat seen too nearly edge-on to intersect rays with.
+    pub affine: Option<AffineKernel>,
+}
+
+/// A kernel evaluated with the affine map at its centre, as EWA splatting does: the screen
+/// Gaussian Σ + σ_f² I moving along the projected chord.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct AffineKernel {
+    /// Screen position at the sub-frame's middle, px.
+    centre: DVec2,
+    /// Half the projected chord, px.
+    half_motion: DVec2,
+    /// Inverse of Σ + σ_f² I (xx, xy, yy).
+    conic: [f64; 3],
+    /// Coverage at the centre: screen area / (2π √det(Σ + σ_f² I)), times the truncation gain.
+    amplitude: f64,
+    /// Depth at the middle, and half its change over the sub-frame.
+    depth: f64,
+    half_depth_change: f64,
+    /// Screen gradient of the splat plane's depth, per px: splats of one oblique surface meet a
+    /// pixel at one depth, not at their centres' depths.
+    depth_gradient: DVec2,
 }
 
 /// What a kernel leaves on one pixel: the part of its time on the ray and how it weighs.
@@ -123,18 +153,41 @@ impl Kernel {
         if !(depth > 0.0) {
             return None;
         }
-        // §4.1: the screen pre-filter stood in for in object space. Each axis is lengthened so that
-        // its projected length² grows by the pre-filter's variance (in px²), as Σ + σ_f² I does
-        // along that axis for the screen-space EWA splat.
+        // §4.1: the screen pre-filter stood in for in object space. With M the 2×2 map from the
+        // splat's own coordinates (in standard deviations) to pixels, the screen covariance is
+        // M Mᵀ; widening the splat's covariance from I to C = I + σ_f² (MᵀM)⁻¹ makes it
+        // M C Mᵀ = M Mᵀ + σ_f² I, the EWA splat's Σ + σ_f² I, in whichever direction the splat is
+        // foreshortened.
         let jacobian = camera.jacobian(centre);
-        let axes = axes.map(|axis| {
-            let length_sq = jacobian.apply(axis).length_squared();
-            let stretch = ((length_sq + PREFILTER_VARIANCE_PX2) / length_sq).sqrt();
-            axis * if stretch.is_finite() {
-                stretch.min(MAX_PREFILTER_STRETCH)
-            } else {
-                MAX_PREFILTER_STRETCH
-            }
+        let [m1, m2] = axes.map(|axis| jacobian.apply(axis));
+        let gram = [m1.dot(m1), m1.dot(m2), m2.dot(m2)];
+        let det = gram[0] * gram[2] - gram[1] * gram[1];
+        if !(det > 0.0) {
+            // Seen exactly edge-on (or degenerate): it covers no area on screen.
+            return None;
+        }
+        let k = PREFILTER_VARIANCE_PX2 / det;
+        let widened = [1.0 + k * gram[2], -k * gram[1], 1.0 + k * gram[0]];
+        let (values, vectors) = symmetric_eigen(widened);
+        let limit = MAX_PREFILTER_STRETCH * MAX_PREFILTER_STRETCH;
+        let object_area = axes[0].cross(axes[1]).length();
+        let affine = if values[0] > limit {
+            let normal = axes[0].cross(axes[1]);
+            let reach = CUTOFF_SIGMAS * axes[0].length().max(axes[1].length());
+            let gradient = plane_depth_gradient(camera, centre, normal, depth, reach);
+            Some(affine_kernel(
+                camera,
+                p0,
+                p1,
+                [m1, m2],
+                area / object_area,
+                gradient,
+            )?)
+        } else {
+            None
+        };
+        let axes = [0, 1].map(|i| {
+            (axes[0] * vectors[i].x + axes[1] * vectors[i].y) * values[i].min(limit).sqrt()
         });
         let spread = axes[0].cross(axes[1]).length();
         let amplitude = TRUNCATION_GAIN * area / (std::f64::consts::TAU * spread);
@@ -146,6 +199,7 @@ impl Kernel {
             colour,
             mass,
             tolerance: CUTOFF_SIGMAS * axes[0].length().max(axes[1].length()),
+            affine,
         };
         (amplitude.is_finite()
             && amplitude > 0.0
@@ -165,7 +219,20 @@ impl Kernel {
             f64::NEG_INFINITY,
             f64::NEG_INFINITY,
         ]; 2];
+        if let Some(affine) = &self.affine {
+            // The covariance's diagonal gives the ellipse's half-extents (times the cut-off).
+            let [xx, xy, yy] = affine.conic;
+            let det = xx * yy - xy * xy;
+            let half = DVec2::new((yy / det).sqrt(), (xx / det).sqrt()) * CUTOFF_SIGMAS + 1.0;
+            for (end, bound) in boxes.iter_mut().enumerate() {
+                let c = affine.centre + affine.half_motion * if end == 0 { -1.0 } else { 1.0 };
+                *bound = [c.x - half.x, c.y - half.y, c.x + half.x, c.y + half.y];
+            }
+        }
         for (end, bound) in boxes.iter_mut().enumerate() {
+            if self.affine.is_some() {
+                break;
+            }
             let centre = self.centre + self.half_motion * if end == 0 { -1.0 } else { 1.0 };
             for i in 0..BOUND_SAMPLES {
                 let angle = std::f64::consts::TAU * i as f64 / BOUND_SAMPLES as f64;
@@ -225,43 +292,80 @@ impl Kernel {
 
 impl Prepared<'_> {
     /// The fragment the kernel leaves on the camera-space ray with direction `ray` (z = −1, so
-    /// the ray parameter is the depth), in front of `near`; `None` when the ray misses the
-    /// kernel's cylinder.
-    pub fn fragment(&self, ray: DVec3, near: f64) -> Option<Fragment> {
+    /// the ray parameter is the depth) through the centre of pixel `pixel`, in front of `near`;
+    /// `None` when the ray misses the kernel's cylinder.
+    pub fn fragment(&self, ray: DVec3, pixel: DVec2, near: f64) -> Option<Fragment> {
         let k = self.kernel;
-        let along = self.normal.dot(ray);
-        if !(along.abs() > MIN_RAY_COSINE * self.normal.length() * ray.length()) {
-            return None;
-        }
-        // Depth of the hit at kernel time s: λ(s) = n·(c + s a3) / n·d, affine in s.
-        let depth0 = self.normal.dot(k.centre) / along;
-        let depth1 = self.normal.dot(k.half_motion) / along;
-        // Splat coordinates of the hit: (λ(s) d − c − s a3)·dual, affine in s: p + s q.
-        let coordinate = |dual: DVec3| {
-            let ray_dual = ray.dot(dual);
-            (
-                depth0 * ray_dual - k.centre.dot(dual),
-                depth1 * ray_dual - k.half_motion.dot(dual),
-            )
-        };
-        let (u0, u1) = coordinate(self.dual[0]);
-        let (v0, v1) = coordinate(self.dual[1]);
-        let quadratic = RayQuadratic {
-            a: u1 * u1 + v1 * v1,
-            b: u0 * u1 + v0 * v1,
-            c: u0 * u0 + v0 * v0,
+        // `depth0 + s·depth1` is the depth the ternary test compares; `offset` is how far that
+        // lies from the depth of the splat's centre, which decides the near plane.
+        let (quadratic, amplitude, depth0, depth1, offset, tolerance) = match &k.affine {
+            Some(affine) => {
+                // (x − c − s h)ᵀ K (x − c − s h): a = hᵀKh, b = −dᵀKh, c = dᵀKd with d = x − c.
+                let [xx, xy, yy] = affine.conic;
+                let form = |u: DVec2, v: DVec2| {
+                    xx * u.x * v.x + xy * (u.x * v.y + u.y * v.x) + yy * u.y * v.y
+                };
+                let (d, h) = (pixel - affine.centre, affine.half_motion);
+                let quadratic = RayQuadratic {
+                    a: form(h, h),
+                    b: -form(d, h),
+                    c: form(d, d),
+                };
+                // The plane's depth at the pixel; as for EWA footprints (project.rs) it moves
+                // across the pre-filter's reach, which the ternary test must allow.
+                let offset = affine.depth_gradient.dot(d);
+                let reach = CUTOFF_SIGMAS * PREFILTER_VARIANCE_PX2.sqrt();
+                let tolerance = k.tolerance + affine.depth_gradient.length() * reach;
+                (
+                    quadratic,
+                    affine.amplitude,
+                    affine.depth + offset,
+                    affine.half_depth_change,
+                    offset,
+                    tolerance,
+                )
+            }
+            None => {
+                let along = self.normal.dot(ray);
+                let cosine = along.abs() / (self.normal.length() * ray.length());
+                if !(cosine > MIN_RAY_COSINE) {
+                    return None;
+                }
+                // Depth of the hit at kernel time s: λ(s) = n·(c + s a3) / n·d, affine in s.
+                let depth0 = self.normal.dot(k.centre) / along;
+                let depth1 = self.normal.dot(k.half_motion) / along;
+                // Splat coordinates of the hit: (λ(s) d − c − s a3)·dual, affine in s: p + s q.
+                let coordinate = |dual: DVec3| {
+                    let ray_dual = ray.dot(dual);
+                    (
+                        depth0 * ray_dual - k.centre.dot(dual),
+                        depth1 * ray_dual - k.half_motion.dot(dual),
+                    )
+                };
+                let (u0, u1) = coordinate(self.dual[0]);
+                let (v0, v1) = coordinate(self.dual[1]);
+                let quadratic = RayQuadratic {
+                    a: u1 * u1 + v1 * v1,
+                    b: u0 * u1 + v0 * v1,
+                    c: u0 * u0 + v0 * v0,
+                };
+                // Hits of one surface's neighbouring splat planes spread in depth as the ray
+                // grazes them.
+                let tolerance = k.tolerance / cosine.max(MIN_TOLERANCE_COSINE);
+                (quadratic, k.amplitude, depth0, depth1, 0.0, tolerance)
+            }
         };
         // The part of the kernel's time [−1, 1] in front of the near plane.
         let [k0, k1] = k.mass;
         let (mut lo, mut hi) = (-1.0f64, 1.0f64);
         if depth1 != 0.0 {
-            let crossing = (near - depth0) / depth1;
+            let crossing = (near - (depth0 - offset)) / depth1;
             if depth1 > 0.0 {
                 lo = lo.max(crossing);
             } else {
                 hi = hi.min(crossing);
             }
-        } else if !(depth0 >= near) {
+        } else if !(depth0 - offset >= near) {
             return None;
         }
         let [s0, s1] = quadratic.support(CUTOFF_SQ, lo, hi)?;
@@ -270,16 +374,65 @@ impl Prepared<'_> {
             mass: [to_mass(s0), to_mass(s1)],
             kernel_mass: k.mass,
             primitive: quadratic.primitive([s0, s1]),
-            scale: k.amplitude * 0.5 * (k1 - k0),
+            scale: amplitude * 0.5 * (k1 - k0),
             depth: [depth0 + s0 * depth1, depth0 + s1 * depth1],
             colour: k.colour,
-            tolerance: k.tolerance
-                / (along.abs() / (self.normal.length() * ray.length())).max(0.05),
+            tolerance,
             kernel: self.index,
         };
         (fragment.mass[1] > fragment.mass[0] && fragment.depth.iter().all(|d| d.is_finite()))
             .then_some(fragment)
     }
+}
+
+/// The affine stand-in for a kernel whose splat at its centre maps to the screen by the columns
+/// `m` (px per standard deviation) and covers `density` of its object-space parallelogram.
+fn affine_kernel(
+    camera: &Camera,
+    p0: DVec3,
+    p1: DVec3,
+    [m1, m2]: [DVec2; 2],
+    density: f64,
+    depth_gradient: DVec2,
+) -> Option<AffineKernel> {
+    let (s0, d0) = camera.project(p0)?;
+    let (s1, d1) = camera.project(p1)?;
+    let covariance = [
+        m1.x * m1.x + m2.x * m2.x + PREFILTER_VARIANCE_PX2,
+        m1.x * m1.y + m2.x * m2.y,
+        m1.y * m1.y + m2.y * m2.y + PREFILTER_VARIANCE_PX2,
+    ];
+    let det = covariance[0] * covariance[2] - covariance[1] * covariance[1];
+    let screen_area = density * m1.perp_dot(m2).abs();
+    let affine = AffineKernel {
+        centre: 0.5 * (s0 + s1),
+        half_motion: 0.5 * (s1 - s0),
+        conic: [
+            covariance[2] / det,
+            -covariance[1] / det,
+            covariance[0] / det,
+        ],
+        amplitude: TRUNCATION_GAIN * screen_area / (std::f64::consts::TAU * det.sqrt()),
+        depth: 0.5 * (d0 + d1),
+        half_depth_change: 0.5 * (d1 - d0),
+        depth_gradient,
+    };
+    (det > 0.0 && affine.amplitude.is_finite()).then_some(affine)
+}
+
+/// Eigenvalues and unit eigenvectors of the symmetric 2×2 matrix [[xx, xy], [xy, yy]].
+fn symmetric_eigen([xx, xy, yy]: [f64; 3]) -> ([f64; 2], [DVec2; 2]) {
+    let mean = 0.5 * (xx + yy);
+    let radius = (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
+    let values = [mean + radius, mean - radius];
+    let first = if xy.abs() > 1e-300 {
+        DVec2::new(values[0] - yy, xy).normalize()
+    } else if xx >= yy {
+        DVec2::X
+    } else {
+        DVec2::Y
+    };
+    (values, [first, first.perp()])
 }
 
 /// The convex hull of two axis-aligned boxes [x0, y0, x1, y1], counter-clockwise in screen

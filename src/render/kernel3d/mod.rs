@@ -118,7 +118,7 @@ pub(super) fn render(
             }
         }
     }
-    stats.kernel3d.kernels = kernels.len();
+
     let visible_depth: Option<Vec<[Vec<f32>; 2]>> =
         (visibility == Visibility::Approximate).then(|| {
             times
@@ -126,7 +126,9 @@ pub(super) fn render(
                 .map(|pair| [pair[0], pair[1]].map(|t| visible_depth_at(scene, t)))
                 .collect()
         });
+    let off_screen = stats.culled.off_screen;
     let (tiles, bounds) = bin(scene, &kernels, &mut stats.culled);
+    stats.kernel3d.kernels = kernels.len() - (stats.culled.off_screen - off_screen);
     let tiles_x = width.div_ceil(TILE_PX) as usize;
     let results: Vec<(Vec<Resolved>, usize, usize)> = tiles
         .par_iter()
@@ -351,7 +353,8 @@ fn resolve_tile(
         let [bx0, by0, bx1, by1] = work.bounds[index as usize];
         for y in y0.max(by0)..y1.min(by1) {
             for x in x0.max(bx0)..x1.min(bx1) {
-                if let Some(f) = prepared.fragment(ray(x, y), camera.near) {
+                let pixel = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                if let Some(f) = prepared.fragment(ray(x, y), pixel, camera.near) {
                     fragments[(y - y0) as usize * w + (x - x0) as usize].push(f);
                 }
             }
