@@ -9,6 +9,7 @@
 //! areas, so the sum of areas is the surface area (tests check it against the closed forms).
 
 use crate::error::{Error, Result};
+use crate::mesh::MeshShape;
 use crate::pointcloud;
 use crate::volume::VolumeShape;
 use glam::DVec3;
@@ -89,7 +90,8 @@ pub const MAX_SURFELS_PER_OBJECT: f64 = 20e6;
 pub const DEFAULT_NEIGHBOURS: usize = 12;
 
 /// An object's geometry, in its own object space: a procedural primitive (centred at the origin),
-/// a point cloud file or the iso-surface of a volume file (centred likewise).
+/// a point cloud file, the iso-surface of a volume file (centred likewise) or a triangle mesh file
+/// sampled into surfels (centred likewise unless it says not to be).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Shape {
@@ -145,6 +147,9 @@ pub enum Shape {
     /// The iso-surface of a raw scalar volume (optionally gzipped), one surfel per voxel cell it
     /// crosses (Guan & Mueller 2004, §3.1); see [`crate::volume`].
     Volume(VolumeShape),
+    /// A triangle mesh (OBJ or PLY, optionally gzipped) sampled into a given number of surfels,
+    /// area-weighted; see [`crate::mesh`].
+    Mesh(MeshShape),
 }
 
 /// How an object is coloured.
@@ -229,6 +234,20 @@ pub fn build_surfels(
         }
         return Ok(surfels);
     }
+    if let Shape::Mesh(mesh) = shape {
+        if spacing.is_some() {
+            return Err(Error::input(
+                file,
+                field.replace(".shape", ".spacing"),
+                "a mesh is sampled into `shape.samples` surfels: remove this `spacing`",
+            ));
+        }
+        let mut surfels = mesh.surfels(file, base, field, MAX_SURFELS_PER_OBJECT as usize)?;
+        for s in &mut surfels {
+            s.colour = colour_for(colour, s.normal, None);
+        }
+        return Ok(surfels);
+    }
     let dimensions: Vec<(&str, f64)> = match *shape {
         Shape::Sphere { radius } => vec![("radius", radius)],
         Shape::Quad { size } => vec![("size[0]", size[0]), ("size[1]", size[1])],
@@ -240,7 +259,7 @@ pub fn build_surfels(
         Shape::Cylinder { radius, length } => vec![("radius", radius), ("length", length)],
         Shape::Torus { major, minor } => vec![("major", major), ("minor", minor)],
         Shape::TorusKnot { scale, tube, .. } => vec![("scale", scale), ("tube", tube)],
-        Shape::Ply { .. } | Shape::Volume(_) => Vec::new(),
+        Shape::Ply { .. } | Shape::Volume(_) | Shape::Mesh(_) => Vec::new(),
     };
     for (name, v) in &dimensions {
         if !(v.is_finite() && *v > 0.0) {
@@ -311,7 +330,7 @@ fn surfels_from_cloud(
 fn sample_primitive(shape: &Shape, spacing: f64) -> Option<Vec<Surfel>> {
     let mut out = Sampler::default();
     match *shape {
-        Shape::Ply { .. } | Shape::Volume(_) => {}
+        Shape::Ply { .. } | Shape::Volume(_) | Shape::Mesh(_) => {}
         Shape::Sphere { radius } => sample_sphere(radius, spacing, &mut out),
         Shape::Quad { size } => sample_quad(
             DVec3::ZERO,

@@ -3,9 +3,9 @@
 //! flash over a trail drawn in a [`style`]).
 //!
 //! The pipeline, one module per stage: a [`scene`] file is validated into surfels
-//! ([`geometry`], [`pointcloud`], [`volume`]) with keyframed [`motion`], a [`camera`] and a
-//! [`shutter`]; a [`plan`] decides what the scene needs; the shared [`project`]ion stage turns
-//! surfels into screen-space footprints that the shared [`raster`]izer composites; the
+//! ([`geometry`], [`pointcloud`], [`volume`], [`mesh`]) with keyframed [`motion`], a [`camera`]
+//! and a [`shutter`]; a [`plan`] decides what the scene needs; the shared [`project`]ion stage
+//! turns surfels into screen-space footprints that the shared [`raster`]izer composites; the
 //! [`render`](mod@render)ers differ only in the footprints they make. [`metrics`] and [`study`] measure
 //! error against run time, [`plot`] draws it, [`gallery`] puts renders side by side on a page,
 //! [`output`] writes images.
@@ -46,6 +46,7 @@ pub mod error;
 pub mod framebuffer;
 pub mod gallery;
 pub mod geometry;
+pub mod mesh;
 pub mod metrics;
 pub mod motion;
 pub mod output;

@@ -1,5 +1,6 @@
-//! Point clouds: reading and writing PLY files, and estimating what surfels need from bare
-//! points — unit normals, covering radii and the surface area each point stands for.
+//! Point clouds: reading and writing PLY files (and reading a PLY mesh's faces for
+//! [`crate::mesh`]), and estimating what surfels need from bare points — unit normals, covering
+//! radii and the surface area each point stands for.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -13,6 +14,7 @@ use rayon::prelude::*;
 use spade::{DelaunayTriangulation, Point2, Triangulation};
 
 use crate::error::{Error, Result};
+use crate::mesh::Mesh;
 
 /// A point cloud as read from a file, before surfels are built. Colours are linear RGB in 0..=1
 /// (8-bit PLY colours are sRGB-decoded; float colours are taken as linear).
@@ -43,40 +45,46 @@ pub struct PointCloud {
 /// normal of zero length (normals are scaled to unit length), a radius that is not positive, a
 /// float colour outside [0, 1].
 pub fn read_ply(path: &Path) -> Result<PointCloud> {
+    parse_ply(&read_file(path, MAX_PLY_BYTES)?, path)
+}
+
+/// The bytes of the file at `path`, gunzipped on the fly when its name ends in `.gz`, or an
+/// error when there are more than `max_bytes` of them (after decompression).
+pub(crate) fn read_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
     let too_large = || {
         Error::input(
             path,
             "file",
-            format!("larger than {MAX_PLY_BYTES} bytes (uncompressed): not read"),
+            format!("larger than {max_bytes} bytes (uncompressed): not read"),
         )
     };
     let metadata = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if !metadata.is_file() {
         return Err(Error::input(path, "file", "not a regular file"));
     }
-    if metadata.len() > MAX_PLY_BYTES {
+    if metadata.len() > max_bytes {
         return Err(too_large());
     }
     let raw = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if path.extension().is_some_and(|ext| ext == "gz") {
-        let mut bytes = Vec::new();
-        flate2::read::MultiGzDecoder::new(raw.as_slice())
-            .take(MAX_PLY_BYTES + 1)
-            .read_to_end(&mut bytes)
-            .map_err(|e| {
-                Error::input(
-                    path,
-                    "gzip data",
-                    format!("cannot decompress the file: {e}"),
-                )
-            })?;
-        if bytes.len() as u64 > MAX_PLY_BYTES {
-            return Err(too_large());
-        }
-        parse_ply(&bytes, path)
-    } else {
-        parse_ply(&raw, path)
+    let gzipped = path.extension().is_some_and(|ext| ext == "gz");
+    if !gzipped {
+        return Ok(raw);
     }
+    let mut bytes = Vec::new();
+    flate2::read::MultiGzDecoder::new(raw.as_slice())
+        .take(max_bytes + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| {
+            Error::input(
+                path,
+                "gzip data",
+                format!("cannot decompress the file: {e}"),
+            )
+        })?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large());
+    }
+    Ok(bytes)
 }
 
 /// Largest PLY file read, after decompression: 2 GiB holds tens of millions of points, and a
@@ -87,7 +95,64 @@ pub const MAX_PLY_BYTES: u64 = 2 << 30;
 /// messages.
 pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud> {
     let header = parse_header(bytes, path)?;
-    let vertex_element = header
+    let vertex_element = vertex_element(&header, path)?;
+    let vertices = &header.elements[vertex_element];
+    let layout = VertexLayout::new(vertices, path)?;
+    let mut reader = BodyReader::new(&header, bytes);
+    for element in &header.elements[..vertex_element] {
+        reader.skip_element(element, path)?;
+    }
+    read_vertices(&mut reader, vertices, &layout, path)
+}
+
+/// A triangle mesh from PLY bytes already in memory (uncompressed; `path` only names them in
+/// messages): the vertices' `x y z` and the faces' vertex lists (`element face` with a list
+/// property `vertex_indices` or `vertex_index`, any integer count and item types), each polygon
+/// fan-triangulated. Other vertex properties (normals included) and other elements are ignored.
+///
+/// Every problem is an [`Error::Input`] naming the file and the header line, element or record:
+/// the problems [`parse_ply`] reports for positions, no face element or no vertex list in it, a
+/// face of fewer than 3 vertices, a vertex index that is negative or not below the vertex count.
+pub fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Mesh> {
+    let header = parse_header(bytes, path)?;
+    let vertex_element = vertex_element(&header, path)?;
+    let vertices = &header.elements[vertex_element];
+    if u32::try_from(vertices.count).is_err() {
+        return Err(Error::input(
+            path,
+            "element vertex",
+            format!(
+                "{} vertices: a mesh may have at most {}",
+                vertices.count,
+                u32::MAX
+            ),
+        ));
+    }
+    let layout = VertexLayout {
+        position: position_properties(vertices, path)?,
+        normal: None,
+        color: None,
+        radius: None,
+    };
+    let (face_element, list) = face_list(&header, path)?;
+    let mut reader = BodyReader::new(&header, bytes);
+    let mut mesh = Mesh::default();
+    let last = vertex_element.max(face_element);
+    for (index, element) in header.elements[..=last].iter().enumerate() {
+        if index == vertex_element {
+            mesh.positions = read_vertices(&mut reader, vertices, &layout, path)?.positions;
+        } else if index == face_element {
+            mesh.triangles = read_faces(&mut reader, element, list, vertices.count, path)?;
+        } else {
+            reader.skip_element(element, path)?;
+        }
+    }
+    Ok(mesh)
+}
+
+/// The index of the `vertex` element, which must declare at least one vertex.
+fn vertex_element(header: &Header, path: &Path) -> Result<usize> {
+    let index = header
         .elements
         .iter()
         .position(|element| element.name == "vertex")
@@ -95,38 +160,81 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             Error::input(
                 path,
                 "element vertex",
-                "the header declares no vertex element; a point cloud needs `element vertex N` \
-                 with properties x, y and z",
+                "the header declares no vertex element; a point cloud or mesh needs `element \
+                 vertex N` with properties x, y and z",
             )
         })?;
-    let vertices = &header.elements[vertex_element];
-    if vertices.count == 0 {
+    if header.elements[index].count == 0 {
         return Err(Error::input(
             path,
             "element vertex",
             "the header declares 0 vertices; the file holds no points",
         ));
     }
-    let layout = VertexLayout::new(vertices, path)?;
+    Ok(index)
+}
 
-    let body = &bytes[header.body_offset..];
-    let mut reader = match header.encoding {
-        Encoding::Ascii => BodyReader::Ascii(AsciiBody::new(body, header.body_first_line)),
-        Encoding::BinaryLittleEndian => BodyReader::Binary(BinaryBody::new(body, false)),
-        Encoding::BinaryBigEndian => BodyReader::Binary(BinaryBody::new(body, true)),
-    };
-    for element in &header.elements[..vertex_element] {
-        reader.skip_element(element, path)?;
+/// The index of the `face` element and of its vertex-index list property.
+fn face_list(header: &Header, path: &Path) -> Result<(usize, usize)> {
+    let element = header
+        .elements
+        .iter()
+        .position(|element| element.name == "face")
+        .ok_or_else(|| {
+            Error::input(
+                path,
+                "element face",
+                "the header declares no face element, so the file holds no mesh (for a point \
+                 cloud use the shape type \"ply\")",
+            )
+        })?;
+    let faces = &header.elements[element];
+    let list = faces
+        .properties
+        .iter()
+        .position(|p| p.name == "vertex_indices" || p.name == "vertex_index")
+        .ok_or_else(|| {
+            Error::input(
+                path,
+                "element face",
+                "no property `vertex_indices` (or `vertex_index`): expected e.g. \
+                 `property list uchar int vertex_indices`",
+            )
+        })?;
+    let property = &faces.properties[list];
+    match property.ty {
+        PropertyType::List { item, .. } if item.integer_range().is_some() => Ok((element, list)),
+        PropertyType::List { item, .. } => Err(Error::input(
+            path,
+            "element face",
+            format!(
+                "list `{}` holds {} items; vertex indices must be integers",
+                property.name,
+                item.name()
+            ),
+        )),
+        PropertyType::Scalar(_) => Err(Error::input(
+            path,
+            "element face",
+            format!(
+                "property `{}` is a single number; expected a list of vertex indices",
+                property.name
+            ),
+        )),
     }
+}
 
-    // Never trust the declared count for allocation: the data itself bounds how many records fit.
-    let capacity = vertices
-        .count
-        .min(body.len() / reader.min_record_bytes(vertices));
-    let mut cloud = CloudBuilder::new(&layout, capacity);
-    let mut values = vec![0.0; vertices.properties.len()];
+/// Reads every record of the vertex element through `layout`.
+fn read_vertices(
+    reader: &mut BodyReader,
+    vertices: &ElementDecl,
+    layout: &VertexLayout,
+    path: &Path,
+) -> Result<PointCloud> {
+    let mut cloud = CloudBuilder::new(layout, reader.capacity(vertices));
+    let mut record = Record::new(vertices, None);
     for index in 0..vertices.count {
-        if !reader.read_record(vertices, index, &mut values, path)? {
+        if !reader.read_record(vertices, index, &mut record, path)? {
             return Err(Error::input(
                 path,
                 "element vertex",
@@ -137,9 +245,66 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud> {
                 ),
             ));
         }
-        cloud.push(&layout, vertices, index, &values, path)?;
+        cloud.push(layout, vertices, index, &record.values, path)?;
     }
     Ok(cloud.finish())
+}
+
+/// Reads every record of the face element, fan-triangulating the polygons of list property
+/// `list`, whose indices must be below `vertex_count`.
+fn read_faces(
+    reader: &mut BodyReader,
+    faces: &ElementDecl,
+    list: usize,
+    vertex_count: usize,
+    path: &Path,
+) -> Result<Vec<[u32; 3]>> {
+    let mut triangles = Vec::with_capacity(reader.capacity(faces));
+    let mut record = Record::new(faces, Some(list));
+    let property = &faces.properties[list];
+    for index in 0..faces.count {
+        if !reader.read_record(faces, index, &mut record, path)? {
+            return Err(Error::input(
+                path,
+                "element face",
+                format!(
+                    "the header declares {} faces but the data ends after {index} (truncated \
+                     file, or wrong count in the header)",
+                    faces.count
+                ),
+            ));
+        }
+        let corners = &record.list;
+        let field = || record_field(faces, index, property);
+        if corners.len() < 3 {
+            return Err(Error::input(
+                path,
+                field(),
+                format!(
+                    "a face of {} vertices: a face needs at least 3",
+                    corners.len()
+                ),
+            ));
+        }
+        if let Some(bad) = corners
+            .iter()
+            .find(|&&v| !(v >= 0.0 && v < vertex_count as f64))
+        {
+            return Err(Error::input(
+                path,
+                field(),
+                format!(
+                    "vertex index {bad} is out of range: the file has {vertex_count} vertices, \
+                     numbered from 0"
+                ),
+            ));
+        }
+        // A polygon is cut into a fan around its first corner; the corners keep their order, so
+        // every triangle keeps the polygon's winding.
+        let corner = |k: usize| corners[k] as u32;
+        triangles.extend((1..corners.len() - 1).map(|k| [corner(0), corner(k), corner(k + 1)]));
+    }
+    Ok(triangles)
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -449,62 +614,11 @@ struct VertexLayout {
 
 impl VertexLayout {
     fn new(vertices: &ElementDecl, path: &Path) -> Result<Self> {
-        let find_number = |name: &str| -> Result<Option<(usize, ScalarType)>> {
-            let Some(index) = vertices.properties.iter().position(|p| p.name == name) else {
-                return Ok(None);
-            };
-            match vertices.properties[index].ty {
-                PropertyType::Scalar(ty) => Ok(Some((index, ty))),
-                PropertyType::List { .. } => Err(Error::input(
-                    path,
-                    "element vertex",
-                    format!("property `{name}` is a list; expected a single number"),
-                )),
-            }
-        };
-        // All of a group's properties, none of them, or an error naming what is missing.
-        let find_group =
-            |names: [&str; 3], what: &str| -> Result<Option<[(usize, ScalarType); 3]>> {
-                let found = [
-                    find_number(names[0])?,
-                    find_number(names[1])?,
-                    find_number(names[2])?,
-                ];
-                match found {
-                    [Some(a), Some(b), Some(c)] => Ok(Some([a, b, c])),
-                    [None, None, None] => Ok(None),
-                    _ => {
-                        let missing: Vec<&str> = names
-                            .iter()
-                            .zip(found)
-                            .filter(|(_, found)| found.is_none())
-                            .map(|(name, _)| *name)
-                            .collect();
-                        Err(Error::input(
-                            path,
-                            "element vertex",
-                            format!(
-                                "a {what} needs all of {}; missing: {}",
-                                names.join(" "),
-                                missing.join(" ")
-                            ),
-                        ))
-                    }
-                }
-            };
+        let group = |names, what| find_group(vertices, names, what, path);
         let indices = |group: [(usize, ScalarType); 3]| group.map(|(index, _)| index);
-
-        let position = find_group(["x", "y", "z"], "position")?
-            .map(indices)
-            .ok_or_else(|| {
-                Error::input(
-                    path,
-                    "element vertex",
-                    "no position: the vertex element needs properties x, y and z",
-                )
-            })?;
-        let normal = find_group(["nx", "ny", "nz"], "normal")?.map(indices);
-        let color = match find_group(["red", "green", "blue"], "colour")? {
+        let position = position_properties(vertices, path)?;
+        let normal = group(["nx", "ny", "nz"], "normal")?.map(indices);
+        let color = match group(["red", "green", "blue"], "colour")? {
             None => None,
             Some(channels) => {
                 let encoding_of = |(index, ty): (usize, ScalarType)| match ty {
@@ -528,7 +642,7 @@ impl VertexLayout {
                 ])
             }
         };
-        let radius = find_number("radius")?.map(|(index, _)| index);
+        let radius = find_number(vertices, "radius", path)?.map(|(index, _)| index);
         Ok(VertexLayout {
             position,
             normal,
@@ -536,6 +650,72 @@ impl VertexLayout {
             radius,
         })
     }
+}
+
+/// The vertex property called `name` and its type, if there is one; a list is an error.
+fn find_number(
+    vertices: &ElementDecl,
+    name: &str,
+    path: &Path,
+) -> Result<Option<(usize, ScalarType)>> {
+    let Some(index) = vertices.properties.iter().position(|p| p.name == name) else {
+        return Ok(None);
+    };
+    match vertices.properties[index].ty {
+        PropertyType::Scalar(ty) => Ok(Some((index, ty))),
+        PropertyType::List { .. } => Err(Error::input(
+            path,
+            "element vertex",
+            format!("property `{name}` is a list; expected a single number"),
+        )),
+    }
+}
+
+/// All of a group's vertex properties, none of them, or an error naming what is missing.
+fn find_group(
+    vertices: &ElementDecl,
+    names: [&str; 3],
+    what: &str,
+    path: &Path,
+) -> Result<Option<[(usize, ScalarType); 3]>> {
+    let found = [
+        find_number(vertices, names[0], path)?,
+        find_number(vertices, names[1], path)?,
+        find_number(vertices, names[2], path)?,
+    ];
+    match found {
+        [Some(a), Some(b), Some(c)] => Ok(Some([a, b, c])),
+        [None, None, None] => Ok(None),
+        _ => {
+            let missing: Vec<&str> = names
+                .iter()
+                .zip(found)
+                .filter(|(_, found)| found.is_none())
+                .map(|(name, _)| *name)
+                .collect();
+            Err(Error::input(
+                path,
+                "element vertex",
+                format!(
+                    "a {what} needs all of {}; missing: {}",
+                    names.join(" "),
+                    missing.join(" ")
+                ),
+            ))
+        }
+    }
+}
+
+/// The vertex properties `x y z`, which every PLY file streak reads must have.
+fn position_properties(vertices: &ElementDecl, path: &Path) -> Result<[usize; 3]> {
+    let group = find_group(vertices, ["x", "y", "z"], "position", path)?.ok_or_else(|| {
+        Error::input(
+            path,
+            "element vertex",
+            "no position: the vertex element needs properties x, y and z",
+        )
+    })?;
+    Ok(group.map(|(index, _)| index))
 }
 
 /// Collects validated vertices into a [`PointCloud`].
@@ -652,13 +832,53 @@ fn srgb8_to_linear(value: f64) -> f32 {
     linear as f32
 }
 
+/// Where a body reader puts one record's values.
+struct Record {
+    /// One per property; a list leaves its slot untouched.
+    values: Vec<f64>,
+    /// The list property whose items are kept, if any.
+    keep: Option<usize>,
+    /// The kept list's items.
+    list: Vec<f64>,
+}
+
+impl Record {
+    fn new(element: &ElementDecl, keep: Option<usize>) -> Self {
+        Record {
+            values: vec![0.0; element.properties.len()],
+            keep,
+            list: Vec::new(),
+        }
+    }
+}
+
 /// Walks the data after the header one element record at a time.
 enum BodyReader<'a> {
     Ascii(AsciiBody<'a>),
     Binary(BinaryBody<'a>),
 }
 
-impl BodyReader<'_> {
+impl<'a> BodyReader<'a> {
+    /// A reader of the data after `header` in `bytes`.
+    fn new(header: &Header, bytes: &'a [u8]) -> Self {
+        let body = &bytes[header.body_offset..];
+        match header.encoding {
+            Encoding::Ascii => BodyReader::Ascii(AsciiBody::new(body, header.body_first_line)),
+            Encoding::BinaryLittleEndian => BodyReader::Binary(BinaryBody::new(body, false)),
+            Encoding::BinaryBigEndian => BodyReader::Binary(BinaryBody::new(body, true)),
+        }
+    }
+
+    /// How many records of `element` to allocate for: never trust the declared count, the data
+    /// left bounds how many records fit.
+    fn capacity(&self, element: &ElementDecl) -> usize {
+        let left = match self {
+            BodyReader::Ascii(body) => body.rest.len(),
+            BodyReader::Binary(body) => body.bytes.len() - body.position,
+        };
+        element.count.min(left / self.min_record_bytes(element))
+    }
+
     /// A lower bound on the bytes one record of `element` takes, at least 1.
     fn min_record_bytes(&self, element: &ElementDecl) -> usize {
         let bytes = match self {
@@ -681,7 +901,7 @@ impl BodyReader<'_> {
         if element.properties.is_empty() {
             return Ok(());
         }
-        let mut ignored = vec![0.0; element.properties.len()];
+        let mut ignored = Record::new(element, None);
         for index in 0..element.count {
             let complete = match self {
                 // Ascii records are lines: no need to look inside what is ignored anyway.
@@ -702,18 +922,19 @@ impl BodyReader<'_> {
         Ok(())
     }
 
-    /// Reads record `index` of `element` into `values` (one per property; lists are skipped and
-    /// leave their slot untouched). Returns false when the data ends before the record starts.
+    /// Reads record `index` of `element` into `record`. Returns false when the data ends before
+    /// the record starts.
     fn read_record(
         &mut self,
         element: &ElementDecl,
         index: usize,
-        values: &mut [f64],
+        record: &mut Record,
         path: &Path,
     ) -> Result<bool> {
+        record.list.clear();
         match self {
-            BodyReader::Ascii(body) => body.read_record(element, index, values, path),
-            BodyReader::Binary(body) => body.read_record(element, index, values, path),
+            BodyReader::Ascii(body) => body.read_record(element, index, record, path),
+            BodyReader::Binary(body) => body.read_record(element, index, record, path),
         }
     }
 }
@@ -758,7 +979,7 @@ impl<'a> AsciiBody<'a> {
         &mut self,
         element: &ElementDecl,
         index: usize,
-        values: &mut [f64],
+        record: &mut Record,
         path: &Path,
     ) -> Result<bool> {
         let Some(line) = self.next_line() else {
@@ -789,9 +1010,9 @@ impl<'a> AsciiBody<'a> {
                 )
             })
         };
-        for (property, value) in element.properties.iter().zip(values.iter_mut()) {
+        for (slot, property) in element.properties.iter().enumerate() {
             match property.ty {
-                PropertyType::Scalar(ty) => *value = next_value(property, ty)?,
+                PropertyType::Scalar(ty) => record.values[slot] = next_value(property, ty)?,
                 PropertyType::List { count, item } => {
                     let length = next_value(property, count)?;
                     if length < 0.0 {
@@ -801,8 +1022,12 @@ impl<'a> AsciiBody<'a> {
                             format!("list length {length} on line {line_number} is negative"),
                         ));
                     }
+                    let keep = record.keep == Some(slot);
                     for _ in 0..length as u64 {
-                        next_value(property, item)?;
+                        let value = next_value(property, item)?;
+                        if keep {
+                            record.list.push(value);
+                        }
                     }
                 }
             }
@@ -899,27 +1124,37 @@ impl<'a> BinaryBody<'a> {
         &mut self,
         element: &ElementDecl,
         index: usize,
-        values: &mut [f64],
+        record: &mut Record,
         path: &Path,
     ) -> Result<bool> {
         if self.position >= self.bytes.len() {
             return Ok(false);
         }
-        for (property, value) in element.properties.iter().zip(values.iter_mut()) {
+        for (slot, property) in element.properties.iter().enumerate() {
             match property.ty {
                 PropertyType::Scalar(ty) => {
-                    *value = self
+                    record.values[slot] = self
                         .read_value(ty)
                         .ok_or_else(|| truncated(element, index, property, path))?;
                 }
                 PropertyType::List { count, item } => {
-                    self.skip_list(element, index, property, count, item, path)?
+                    let start = self.position;
+                    self.skip_list(element, index, property, count, item, path)?;
+                    if record.keep == Some(slot) {
+                        // The list is known to be complete: go back and read its items.
+                        let items = (self.position - start - count.size()) / item.size();
+                        self.position = start + count.size();
+                        record
+                            .list
+                            .extend((0..items).filter_map(|_| self.read_value(item)));
+                    }
                 }
             }
         }
         Ok(true)
     }
 
+    /// Moves past a list, checking that all of it is there.
     fn skip_list(
         &mut self,
         element: &ElementDecl,
@@ -1939,6 +2174,118 @@ mod tests {
                     let _ = parse(&damaged);
                 }
             }
+        }
+    }
+
+    fn parse_mesh(bytes: &[u8]) -> Result<Mesh> {
+        parse_ply_mesh(bytes, Path::new(BAD))
+    }
+
+    /// Parses `bytes` as a mesh, expecting an error that names the file and `field`.
+    fn expect_mesh_error(bytes: &[u8], field: &str) -> String {
+        let message = match parse_mesh(bytes) {
+            Ok(mesh) => panic!("expected an error at {field}, got {mesh:?}"),
+            Err(error) => error.to_string(),
+        };
+        assert!(
+            message.starts_with(&format!("{BAD}: {field}: ")),
+            "`{message}` should name {BAD} and {field}"
+        );
+        message
+    }
+
+    #[test]
+    fn mesh_faces_read_alike_in_every_encoding() {
+        // The full file has a camera list before the vertices and a zero-length normal a mesh
+        // does not need.
+        let mut records = full_records();
+        records[1] = vertex([0.0, 0.0, 0.0], [0.0; 3], [0, 0, 0], 1.0);
+        records.push(vec![Value::List(vec![2, 1, 0])]);
+        let header = full_header().replace("face 1", "face 2");
+        let ascii = parse_mesh(&encode_ply("ascii", &header, &records)).unwrap();
+        for format in ["binary_little_endian", "binary_big_endian"] {
+            assert_eq!(
+                parse_mesh(&encode_ply(format, &header, &records)).unwrap(),
+                ascii
+            );
+        }
+        assert_eq!(ascii.triangles, vec![[0, 1, 2], [2, 1, 0]]);
+        assert_eq!(ascii.positions.len(), 3);
+        assert_eq!(
+            ascii.positions[1],
+            DVec3::new(-7.5, 0.1f32.into(), (1.0f32 / 3.0).into())
+        );
+
+        // Faces before the vertices, a polygon, and `list int uint vertex_index` in binary.
+        let mut binary = b"ply\nformat binary_little_endian 1.0\n\
+            element face 2\nproperty list int uint vertex_index\nproperty uchar flags\n\
+            element vertex 5\nproperty double x\nproperty double y\nproperty double z\n\
+            end_header\n"
+            .to_vec();
+        for face in [&[0u32, 1, 2, 3, 4][..], &[4, 3, 2]] {
+            binary.extend((face.len() as i32).to_le_bytes());
+            for index in face {
+                binary.extend(index.to_le_bytes());
+            }
+            binary.push(7);
+        }
+        for k in 0..5 {
+            for value in [f64::from(k), -f64::from(k), 0.5] {
+                binary.extend(value.to_le_bytes());
+            }
+        }
+        let mesh = parse_mesh(&binary).unwrap();
+        assert_eq!(
+            mesh.triangles,
+            vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [4, 3, 2]]
+        );
+        assert_eq!(mesh.positions[4], DVec3::new(4.0, -4.0, 0.5));
+    }
+
+    #[test]
+    fn bad_faces_are_errors_naming_face_and_property() {
+        let header = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+            element face 1\nproperty list uchar int vertex_indices\n";
+        let points = "0 0 0\n1 0 0\n0 1 0\n";
+        let with_face = |face: &str| ascii(header, &format!("{points}{face}\n"));
+        let message = expect_mesh_error(&with_face("3 0 1 3"), "face 0 property vertex_indices");
+        assert!(message.contains("index 3 is out of range"), "{message}");
+        expect_mesh_error(&with_face("3 0 -1 2"), "face 0 property vertex_indices");
+        let message = expect_mesh_error(&with_face("2 0 1"), "face 0 property vertex_indices");
+        assert!(message.contains("at least 3"), "{message}");
+        expect_mesh_error(&with_face("3 0 1"), "face 0 property vertex_indices");
+        expect_mesh_error(&with_face("3 0 1 1.5"), "face 0 property vertex_indices");
+        expect_mesh_error(&ascii(header, points), "element face");
+        expect_mesh_error(
+            &ascii(&XYZ.replace("vertex 2", "vertex 3"), points),
+            "element face",
+        );
+        let float_list = header.replace("uchar int", "uchar float");
+        let message = expect_mesh_error(&ascii(&float_list, points), "element face");
+        assert!(message.contains("integers"), "{message}");
+        let no_list = header.replace("list uchar int vertex_indices", "int vertex_indices");
+        expect_mesh_error(&ascii(&no_list, points), "element face");
+        let unnamed = header.replace("vertex_indices", "corners");
+        expect_mesh_error(&ascii(&unnamed, points), "element face");
+
+        // Binary data cut inside the face list.
+        let records = vec![
+            vec![Value::Float(0.0), Value::Float(0.0), Value::Float(0.0)],
+            vec![Value::Float(1.0), Value::Float(0.0), Value::Float(0.0)],
+            vec![Value::Float(0.0), Value::Float(1.0), Value::Float(0.0)],
+            vec![Value::List(vec![0, 1, 2])],
+        ];
+        let bytes = encode_ply("binary_little_endian", header, &records);
+        assert_eq!(parse_mesh(&bytes).unwrap().triangles, vec![[0, 1, 2]]);
+        expect_mesh_error(&bytes[..bytes.len() - 2], "face 0 property vertex_indices");
+        expect_mesh_error(&bytes[..bytes.len() - 13], "element face");
+        for end in 0..bytes.len() - 1 {
+            assert!(parse_mesh(&bytes[..end]).is_err(), "cut at {end}");
+        }
+        for index in 0..bytes.len() {
+            let mut damaged = bytes.clone();
+            damaged[index] ^= 0xff;
+            let _ = parse_mesh(&damaged);
         }
     }
 

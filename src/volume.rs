@@ -427,7 +427,7 @@ impl Piece {
 }
 
 /// The principal axes of a covariance, each scaled to its standard deviation.
-fn principal_axes(c: Sym2) -> (DVec2, DVec2) {
+pub(crate) fn principal_axes(c: Sym2) -> (DVec2, DVec2) {
     let mean = 0.5 * (c.xx + c.yy);
     let spread = (0.25 * (c.xx - c.yy).powi(2) + c.xy * c.xy).sqrt();
     let (major, minor) = (mean + spread, (mean - spread).max(0.0));
