@@ -137,14 +137,16 @@ pub(super) struct Prepared<'a> {
 
 impl Kernel {
     /// The kernel of a splat seen at the sub-frame's start (`p0`) and end (`p1`) with camera-space
-    /// axes `axes` at its middle; `None` when it has no area.
+    /// axes `axes` at its middle; `density` is the surfel's area over the area of its axes'
+    /// parallelogram (both in object space, so that a keyframe's scale cancels). `None` when it
+    /// has no area.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         camera: &Camera,
         p0: DVec3,
         p1: DVec3,
         axes: [DVec3; 2],
-        area: f64,
+        density: f64,
         colour: [f32; 3],
         mass: [f64; 2],
     ) -> Option<Kernel> {
@@ -170,7 +172,7 @@ impl Kernel {
         let widened = [1.0 + k * gram[2], -k * gram[1], 1.0 + k * gram[0]];
         let (values, vectors) = symmetric_eigen(widened);
         let limit = MAX_PREFILTER_STRETCH * MAX_PREFILTER_STRETCH;
-        let object_area = axes[0].cross(axes[1]).length();
+        let view_area = axes[0].cross(axes[1]).length();
         let affine = if values[0] > limit {
             let normal = axes[0].cross(axes[1]);
             let reach = CUTOFF_SIGMAS * axes[0].length().max(axes[1].length());
@@ -180,7 +182,7 @@ impl Kernel {
                 p0,
                 p1,
                 [m1, m2],
-                area / object_area,
+                density,
                 gradient,
             )?)
         } else {
@@ -190,7 +192,7 @@ impl Kernel {
             (axes[0] * vectors[i].x + axes[1] * vectors[i].y) * values[i].min(limit).sqrt()
         });
         let spread = axes[0].cross(axes[1]).length();
-        let amplitude = TRUNCATION_GAIN * area / (std::f64::consts::TAU * spread);
+        let amplitude = TRUNCATION_GAIN * density * view_area / (std::f64::consts::TAU * spread);
         let kernel = Kernel {
             centre,
             half_motion: 0.5 * (p1 - p0),

@@ -239,7 +239,8 @@ fn kernels_over(
                 let colour = scene
                     .lighting
                     .shade(surfel.colour, middle.world_normal(surfel.normal));
-                Kernel::new(camera, p0, p1, axes, surfel.area, colour, window)
+                let density = surfel.area / surfel.axis_u.cross(surfel.axis_v).length();
+                Kernel::new(camera, p0, p1, axes, density, colour, window)
                     .ok_or(Cull::Raster(Rejection::Degenerate))
             })
             .collect();
