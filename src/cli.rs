@@ -301,23 +301,15 @@ fn run_study(args: StudyArgs) -> Result<()> {
     } else {
         write_error_vs_time_svg(&points, &title, &args.output.join("study.svg"))?;
     }
-    let table = study::table(&points);
-    std::fs::write(args.output.join("study.md"), &table).map_err(|e| Error::io(&args.output, e))?;
-    print!("{table}");
-    if let Some(blur) = points.iter().find(|p| {
-        p.method == Method::Blur.name() && p.knob == format!("τ={DEFAULT_TOLERANCE_PX}px")
-    }) {
-        match study::samples_to_match(&points, blur.error.rmse) {
-            Some(r) => println!(
-                "reference needs {} to beat blur {} (RMSE {:.5})",
-                r.knob, blur.knob, blur.error.rmse
-            ),
-            None => println!(
-                "no studied reference sample count beats blur {} (RMSE {:.5})",
-                blur.knob, blur.error.rmse
-            ),
-        }
+    let mut report = study::table(&points);
+    report
+        .push_str("\nEqual error (the smallest reference sample count at least as accurate):\n\n");
+    for method in [Method::Blur, Method::Kernel3d] {
+        report.push_str(&study::equal_error(&points, method));
     }
+    std::fs::write(args.output.join("study.md"), &report)
+        .map_err(|e| Error::io(&args.output, e))?;
+    print!("{report}");
     eprintln!("wrote {}", args.output.join("study.csv").display());
     Ok(())
 }

@@ -24,6 +24,17 @@ use std::time::Instant;
 /// Blur tolerances studied, px (the plan's chord-deviation tolerance).
 pub const BLUR_TOLERANCES_PX: [f64; 6] = [8.0, 4.0, 2.0, 1.0, 0.5, 0.25];
 
+/// Sub-frame counts and visibility modes of `kernel3d` studied.
+pub const KERNEL_SETTINGS: [(usize, Visibility); 7] = [
+    (1, Visibility::Exact),
+    (2, Visibility::Exact),
+    (4, Visibility::Exact),
+    (8, Visibility::Exact),
+    (1, Visibility::Approximate),
+    (4, Visibility::Approximate),
+    (8, Visibility::Approximate),
+];
+
 /// The tolerance `streak render -m blur` uses unless told otherwise.
 pub const DEFAULT_TOLERANCE_PX: f64 = 1.0;
 
@@ -203,6 +214,18 @@ pub fn run(
         },
         tolerance_px: DEFAULT_TOLERANCE_PX,
     }));
+    // Heinzle §6: the kernels at 1–8 sub-frames, and the GPU approximation at 1, 4 and 8.
+    for (subframes, visibility) in KERNEL_SETTINGS {
+        setups.push(Setting {
+            settings: Settings {
+                method: Method::Kernel3d,
+                subframes: Some(subframes),
+                visibility,
+                ..Settings::default()
+            },
+            tolerance_px: DEFAULT_TOLERANCE_PX,
+        });
+    }
     let mut n = 1;
     while n <= options.max_samples {
         setups.push(Setting {
@@ -255,6 +278,32 @@ pub fn samples_to_match(points: &[StudyPoint], rmse: f64) -> Option<&StudyPoint>
     points
         .iter()
         .find(|p| p.method == Method::Reference.name() && p.error.rmse <= rmse)
+}
+
+/// For each of `method`'s points, the reference sample count that first reaches its error and
+/// how its time compares: Heinzle Table 1's equal-error ratio. One line each, Markdown.
+#[must_use]
+pub fn equal_error(points: &[StudyPoint], method: Method) -> String {
+    let mut out = String::new();
+    for p in points.iter().filter(|p| p.method == method.name()) {
+        out.push_str(&match samples_to_match(points, p.error.rmse) {
+            Some(r) => format!(
+                "- {} {} (RMSE {:.5}, {:.3} s) matches the reference at {} ({:.3} s): {:.2}× its time\n",
+                p.method,
+                p.knob,
+                p.error.rmse,
+                p.seconds,
+                r.knob,
+                r.seconds,
+                p.seconds / r.seconds
+            ),
+            None => format!(
+                "- {} {} (RMSE {:.5}, {:.3} s): no studied reference sample count reaches it\n",
+                p.method, p.knob, p.error.rmse, p.seconds
+            ),
+        });
+    }
+    out
 }
 
 /// A plain-text table of the points with times as ratios to the static render.

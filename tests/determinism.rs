@@ -2,6 +2,7 @@
 
 use std::path::Path;
 use std::sync::Arc;
+use streak::render::Visibility;
 use streak::style::Style;
 use streak::{render, Method, Plan, Scene, Settings};
 
@@ -51,6 +52,16 @@ fn images_are_bit_identical_for_one_two_and_five_threads() {
         hint("brush.toml"),
         hint("ink-lines.toml"),
         hint("stroboscopic.toml"),
+        Settings {
+            method: Method::Kernel3d,
+            subframes: Some(2),
+            ..Settings::default()
+        },
+        Settings {
+            method: Method::Kernel3d,
+            visibility: Visibility::Approximate,
+            ..Settings::default()
+        },
     ];
     for settings in &settings {
         let one = render_with_threads(&scene, settings, 1);

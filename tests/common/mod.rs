@@ -175,3 +175,58 @@ pub fn least_coverage_inside_unit_sphere(scene: &Scene) -> f32 {
     assert!(inside > 10_000);
     worst
 }
+
+/// Screen standard deviation of the test splat, px.
+pub const SIGMA_PX: f64 = 2.0;
+
+/// The exact box-shutter time average of a Gaussian of weight `weight` and covariance σ²I moving
+/// from `c0` by `m` (px), at pixel centres: ∫₀¹ N(x; c0 + t m, σ²I) dt. Written out: with
+/// a = mᵀm/σ², b = mᵀd/σ², c = dᵀd/σ² for d = x − c0, the exponent is −(a t² − 2 b t + c)/2, whose
+/// integral over [0, 1] is exp(−(c − b²/a)/2) √(π/2a) [erf(√(a/2)(1 − b/a)) − erf(−√(a/2) b/a)].
+pub fn exact_streak(
+    width: u32,
+    height: u32,
+    c0: [f64; 2],
+    m: [f64; 2],
+    variance: f64,
+    weight: f64,
+) -> Vec<f64> {
+    let norm = weight / (std::f64::consts::TAU * variance);
+    let a = (m[0] * m[0] + m[1] * m[1]) / variance;
+    let mut out = Vec::with_capacity((width * height) as usize);
+    for y in 0..height {
+        for x in 0..width {
+            let d = [x as f64 + 0.5 - c0[0], y as f64 + 0.5 - c0[1]];
+            let b = (m[0] * d[0] + m[1] * d[1]) / variance;
+            let c = (d[0] * d[0] + d[1] * d[1]) / variance;
+            let k = (a / 2.0).sqrt();
+            let integral = (-(c - b * b / a) / 2.0).exp()
+                * (std::f64::consts::PI / (2.0 * a)).sqrt()
+                * (libm::erf(k * (1.0 - b / a)) - libm::erf(-k * b / a));
+            out.push(norm * integral);
+        }
+    }
+    out
+}
+
+/// A splat translating 4 world units (≈ 48 px) to the right across a 128×64 image.
+pub fn translating_scene() -> (Scene, Vec<f64>) {
+    let camera = camera(128, 64);
+    let scale = px_per_unit(&camera);
+    let surfel = facing_surfel(DVec3::ZERO, SIGMA_PX / scale);
+    let travel = 4.0;
+    let motion = motion(&[
+        (0.0, pose(DVec3::new(-travel / 2.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(travel / 2.0, 0.0, 0.0), 0.0)),
+    ]);
+    let weight = surfel.area * scale * scale;
+    let exact = exact_streak(
+        128,
+        64,
+        [64.0 - travel / 2.0 * scale, 32.0],
+        [travel * scale, 0.0],
+        SIGMA_PX * SIGMA_PX + streak::raster::PREFILTER_VARIANCE_PX2,
+        weight,
+    );
+    (scene(camera, vec![object(vec![surfel], motion)]), exact)
+}

@@ -17,10 +17,12 @@
 //!
 //! **Approximate** (§5.1–5.4): a fragment is kept when its nearest depth is in front of the
 //! visible surface at either end of the sub-frame (two depth buffers); kept fragments are
-//! blended with their whole integrals, normalized, and the background shows outside the
-//! earliest-to-latest covered time [t_min, t_max]. Within that span, coverage below one (the
-//! silhouette's anti-aliasing) still lets the background through, as in the exact mode, so that
-//! the study measures only what the visibility approximation costs.
+//! blended with their whole integrals, normalized, and the background shows only outside the
+//! earliest-to-latest covered time [t_min, t_max] — so a pixel covered briefly at both ends of
+//! the sub-frame shows no background in between (§6, Fig. 9). Spatial coverage below one (a
+//! silhouette's anti-aliasing) is kept: the surfaces' mean coverage while any fragment covers
+//! the pixel scales the blend, as the exact mode's does, so that the study measures what the
+//! temporal visibility approximation costs rather than hard-edged silhouettes.
 
 use super::kernel::Fragment;
 
@@ -301,7 +303,7 @@ pub(super) fn resolve_approximate(
     visible_depth: [f32; 2],
 ) -> Resolved {
     let (mut weight, mut colour) = (0.0, [0.0; 3]);
-    let (mut first, mut last) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut spans: Vec<[f64; 2]> = Vec::new();
     for f in fragments {
         let Some((w, [m0, m1])) = f.within(window) else {
             continue;
@@ -317,18 +319,28 @@ pub(super) fn resolve_approximate(
         for (c, v) in colour.iter_mut().zip(f.colour) {
             *c += w * f64::from(v);
         }
-        first = first.min(m0);
-        last = last.max(m1);
+        spans.push([m0, m1]);
     }
     let length = window[1] - window[0];
-    if !(weight > 0.0 && last > first) {
+    // [t_min, t_max], and the time during which some fragment covers the pixel.
+    spans.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]));
+    let (first, last) = (
+        spans.first().map_or(0.0, |s| s[0]),
+        spans.iter().fold(f64::NEG_INFINITY, |m, s| m.max(s[1])),
+    );
+    let mut active = 0.0;
+    let mut reach = f64::NEG_INFINITY;
+    for &[m0, m1] in &spans {
+        active += (m1 - m0.max(reach)).max(0.0);
+        reach = reach.max(m1);
+    }
+    if !(weight > 0.0 && active > 0.0) {
         return Resolved {
             colour: [0.0; 3],
             background: length,
         };
     }
-    let span = last - first;
-    let covered = span * (weight / span).min(1.0);
+    let covered = (last - first) * (weight / active).min(1.0);
     Resolved {
         colour: colour.map(|c| c * covered / weight),
         background: length - covered,

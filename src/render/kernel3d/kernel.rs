@@ -177,14 +177,7 @@ impl Kernel {
             let normal = axes[0].cross(axes[1]);
             let reach = CUTOFF_SIGMAS * axes[0].length().max(axes[1].length());
             let gradient = plane_depth_gradient(camera, centre, normal, depth, reach);
-            Some(affine_kernel(
-                camera,
-                p0,
-                p1,
-                [m1, m2],
-                density,
-                gradient,
-            )?)
+            Some(affine_kernel(camera, p0, p1, [m1, m2], density, gradient)?)
         } else {
             None
         };
