@@ -54,11 +54,12 @@ fn images_are_bit_identical_for_one_two_and_five_threads() {
         hint("stroboscopic.toml"),
         Settings {
             method: Method::Kernel3d,
-            subframes: Some(2),
+            subframes: Some(1),
             ..Settings::default()
         },
         Settings {
             method: Method::Kernel3d,
+            subframes: Some(1),
             visibility: Visibility::Approximate,
             ..Settings::default()
         },
