@@ -458,3 +458,41 @@ fn a_scene_may_name_its_style() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("surfels emit trails"), "{stdout}");
 }
+
+#[test]
+fn kernel_options_belong_to_kernel3d() {
+    let dir = workdir("kernel-options");
+    std::fs::write(dir.join("scene.toml"), SCENE).unwrap();
+    let out = streak(
+        &["render", "scene.toml", "-m", "blur", "--subframes", "2"],
+        &dir,
+    );
+    assert_fails_with(
+        &out,
+        &["--subframes and --approximate apply to -m kernel3d only"],
+    );
+    let out = streak(
+        &["render", "scene.toml", "-m", "kernel3d", "--subframes", "0"],
+        &dir,
+    );
+    assert!(!out.status.success());
+    let out = streak(
+        &[
+            "render",
+            "scene.toml",
+            "-m",
+            "kernel3d",
+            "--approximate",
+            "--explain",
+            "-o",
+            "k.png",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("kernel3d: "));
+}

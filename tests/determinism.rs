@@ -38,7 +38,9 @@ fn assert_thread_count_independent(scene: &Scene, settings: &Settings) {
 }
 
 fn gallery_scene(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("gallery").join(name);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("gallery")
+        .join(name);
     let mut scene = Scene::load(&path).unwrap();
     scene.camera = scene.camera.resized(160, 120);
     scene
