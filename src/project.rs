@@ -160,10 +160,10 @@ pub enum Cull {
 }
 
 impl Culled {
-    /// Keep a footprint or count why there is none.
-    pub fn keep(&mut self, result: Result<Footprint, Cull>, footprints: &mut Vec<Footprint>) {
+    /// Keep a footprint (or kernel) or count why there is none.
+    pub fn keep<T>(&mut self, result: Result<T, Cull>, kept: &mut Vec<T>) {
         match result {
-            Ok(f) => footprints.push(f),
+            Ok(f) => kept.push(f),
             Err(Cull::BackFacing) => self.back_facing += 1,
             Err(Cull::BehindNear) => self.behind_near += 1,
             Err(Cull::Raster(Rejection::OffScreen)) => self.off_screen += 1,

@@ -68,16 +68,29 @@ impl Setting {
             Method::Blur => format!("τ={}px", self.tolerance_px),
             Method::Reference => format!("N={}", self.settings.samples),
             Method::Hint => format!("style={}", self.style_name()),
-            Method::Kernel3d => format!(
-                "{}{}",
-                self.settings
-                    .subframes
-                    .map_or_else(|| "plan".to_string(), |n| format!("F={n}")),
-                match self.settings.visibility {
-                    Visibility::Exact => "",
-                    Visibility::Approximate => " approx",
-                }
-            ),
+            Method::Kernel3d => self.kernel_label("F=", ""),
+        }
+    }
+
+    /// `kernel3d`'s sub-frames (or `plan`) after `prefix`, and `approximate` in the GPU mode.
+    fn kernel_label(&self, prefix: &str, approximate: &str) -> String {
+        let subframes = self
+            .settings
+            .subframes
+            .map_or_else(|| "plan".to_string(), |n| format!("{prefix}{n}"));
+        match self.settings.visibility {
+            Visibility::Exact => subframes,
+            Visibility::Approximate => subframes + approximate,
+        }
+    }
+
+    /// The plotted series: the method, with `kernel3d`'s GPU approximation a series of its own.
+    fn series(&self) -> String {
+        match (self.settings.method, self.settings.visibility) {
+            (Method::Kernel3d, Visibility::Approximate) => {
+                format!("{} approx", Method::Kernel3d.name())
+            }
+            (method, _) => method.name().to_string(),
         }
     }
 
@@ -94,16 +107,7 @@ impl Setting {
             Method::Blur => format!("blur-tol{}", self.tolerance_px),
             Method::Reference => format!("reference-n{}", self.settings.samples),
             Method::Hint => format!("hint-{}", self.style_name()),
-            Method::Kernel3d => format!(
-                "kernel3d-{}{}",
-                self.settings
-                    .subframes
-                    .map_or_else(|| "plan".to_string(), |n| format!("f{n}")),
-                match self.settings.visibility {
-                    Visibility::Exact => "",
-                    Visibility::Approximate => "-approx",
-                }
-            ),
+            Method::Kernel3d => format!("kernel3d-{}", self.kernel_label("f", "-approx")),
         }
     }
 }
@@ -260,7 +264,7 @@ pub fn run(
             &options.out_dir.join(format!("{}.png", setting.file_stem())),
         )?;
         points.push(StudyPoint {
-            method: setting.settings.method.name().to_string(),
+            method: setting.series(),
             knob: setting.knob(),
             seconds: median(times),
             error: compare(&first.image, &reference)?,
@@ -285,7 +289,10 @@ pub fn samples_to_match(points: &[StudyPoint], rmse: f64) -> Option<&StudyPoint>
 #[must_use]
 pub fn equal_error(points: &[StudyPoint], method: Method) -> String {
     let mut out = String::new();
-    for p in points.iter().filter(|p| p.method == method.name()) {
+    for p in points
+        .iter()
+        .filter(|p| p.method.starts_with(method.name()))
+    {
         out.push_str(&match samples_to_match(points, p.error.rmse) {
             Some(r) => format!(
                 "- {} {} (RMSE {:.5}, {:.3} s) matches the reference at {} ({:.3} s): {:.2}× its time\n",

@@ -245,13 +245,7 @@ fn kernels_over(
             })
             .collect();
         for result in results {
-            match result {
-                Ok(kernel) => kernels.push(kernel),
-                Err(Cull::BackFacing) => culled.back_facing += 1,
-                Err(Cull::BehindNear) => culled.behind_near += 1,
-                Err(Cull::Raster(Rejection::OffScreen)) => culled.off_screen += 1,
-                Err(Cull::Raster(Rejection::Degenerate)) => culled.degenerate += 1,
-            }
+            culled.keep(result, &mut kernels);
         }
     }
     kernels
