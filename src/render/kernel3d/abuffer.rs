@@ -26,11 +26,12 @@
 
 use super::kernel::Fragment;
 
-/// Shortest piece, as a share of the window: fragment ends closer than this are merged, so that a
-/// pixel crossed by many short fragments is cut into at most a few thousand pieces. Within a
-/// piece each fragment's coverage is still integrated exactly over its own part of it; only
-/// where surfaces occlude each other is the order taken once per piece.
-const MIN_PIECE: f64 = 1.0 / 512.0;
+/// Most pieces a pixel's window is cut into. A pixel crossed by more fragment ends than this
+/// (thousands, where many small splats sweep past) has ends closer than 1/`MAX_PIECES` of the
+/// window merged: within a piece each fragment's coverage is still integrated exactly over its own
+/// part of it, and only where surfaces occlude each other is their order taken once per piece.
+/// Pixels with fewer ends are cut at every one of them, exactly.
+const MAX_PIECES: usize = 512;
 
 /// Once this share of a piece is left unoccluded, farther surfaces cannot change an 8-bit value.
 const OPAQUE_REMAINDER: f64 = 1e-4;
@@ -71,7 +72,9 @@ pub(super) fn resolve_exact(fragments: &mut [Fragment], window: [f64; 2]) -> Res
     }
     cuts.sort_unstable_by(f64::total_cmp);
     cuts.dedup();
-    merge_cuts(&mut cuts, (window[1] - window[0]) * MIN_PIECE);
+    if cuts.len() > MAX_PIECES + 1 {
+        merge_cuts(&mut cuts, (window[1] - window[0]) / MAX_PIECES as f64);
+    }
     // Fragments by start, so that the active set is swept in order.
     fragments.sort_unstable_by(|a, b| {
         a.mass[0]
