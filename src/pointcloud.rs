@@ -1872,13 +1872,10 @@ mod tests {
         parse_ply(bytes, Path::new(BAD))
     }
 
-    /// Parses `bytes`, expecting an error that names the file and `field`; returns the message.
-    fn expect_error(bytes: &[u8], field: &str) -> String {
-        let message = match parse(bytes) {
-            Ok(cloud) => panic!(
-                "expected an error at {field}, got {} points",
-                cloud.positions.len()
-            ),
+    /// The error of `result`, which must name the file and `field`; returns the message.
+    fn error_naming<T: std::fmt::Debug>(result: Result<T>, field: &str) -> String {
+        let message = match result {
+            Ok(value) => panic!("expected an error at {field}, got {value:?}"),
             Err(error) => error.to_string(),
         };
         assert!(
@@ -1886,6 +1883,11 @@ mod tests {
             "`{message}` should name {BAD} and {field}"
         );
         message
+    }
+
+    /// Parses `bytes`, expecting an error that names the file and `field`; returns the message.
+    fn expect_error(bytes: &[u8], field: &str) -> String {
+        error_naming(parse(bytes).map(|cloud| cloud.positions.len()), field)
     }
 
     #[test]
@@ -2183,15 +2185,7 @@ mod tests {
 
     /// Parses `bytes` as a mesh, expecting an error that names the file and `field`.
     fn expect_mesh_error(bytes: &[u8], field: &str) -> String {
-        let message = match parse_mesh(bytes) {
-            Ok(mesh) => panic!("expected an error at {field}, got {mesh:?}"),
-            Err(error) => error.to_string(),
-        };
-        assert!(
-            message.starts_with(&format!("{BAD}: {field}: ")),
-            "`{message}` should name {BAD} and {field}"
-        );
-        message
+        error_naming(parse_mesh(bytes), field)
     }
 
     #[test]

@@ -401,18 +401,26 @@ impl Layer {
     /// The layer over a plain `background`.
     #[must_use]
     pub fn over_colour(&self, background: [f32; 3]) -> Framebuffer {
-        self.over(&Framebuffer::filled(self.width, self.height, background))
+        self.composite(|_| background)
     }
 
     /// The layer over `below`, an image of the same size.
     #[must_use]
     pub fn over(&self, below: &Framebuffer) -> Framebuffer {
+        self.composite(|i| below.pixels[i])
+    }
+
+    /// colour + transmittance × what lies behind pixel i.
+    fn composite(&self, behind: impl Fn(usize) -> [f32; 3]) -> Framebuffer {
         let pixels = self
             .colour
             .iter()
             .zip(&self.transmittance)
-            .zip(&below.pixels)
-            .map(|((c, &t), b)| [0, 1, 2].map(|i| c[i] + t * b[i]))
+            .enumerate()
+            .map(|(i, (c, &t))| {
+                let b = behind(i);
+                [0, 1, 2].map(|k| c[k] + t * b[k])
+            })
             .collect();
         Framebuffer {
             width: self.width,

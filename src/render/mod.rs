@@ -21,7 +21,7 @@ pub use kernel3d::{KernelStats, Visibility};
 use crate::framebuffer::Framebuffer;
 use crate::plan::Plan;
 use crate::project::{object_footprints_at, Culled};
-use crate::raster::{rasterize, Footprint, RasterStats, Target, TimeBins};
+use crate::raster::{rasterize, Footprint, Layer, RasterStats, Target, TimeBins};
 use crate::scene::Scene;
 use crate::style::Style;
 use indicatif::ProgressBar;
@@ -168,6 +168,12 @@ pub fn render(
 #[must_use]
 pub fn render_static(scene: &Scene, t: f64) -> Render {
     let mut stats = Stats::default();
+    let image = instant_layer(scene, t, &mut stats).over_colour(scene.background);
+    Render { image, stats }
+}
+
+/// The whole scene splatted at time `t`, as a layer, counting into `stats`.
+fn instant_layer(scene: &Scene, t: f64, stats: &mut Stats) -> Layer {
     let mut footprints = Vec::new();
     for object in &scene.objects {
         object_footprints_at(
@@ -179,8 +185,7 @@ pub fn render_static(scene: &Scene, t: f64) -> Render {
             &mut stats.culled,
         );
     }
-    let image = draw(scene, &footprints, &TimeBins::INSTANT, &mut stats);
-    Render { image, stats }
+    rasterize_counted(scene, &footprints, &TimeBins::INSTANT, stats)
 }
 
 /// Rasterize footprints with the scene's size and background in time bins `bins`, counting into
@@ -191,11 +196,21 @@ fn draw<const B: usize>(
     bins: &TimeBins<B>,
     stats: &mut Stats,
 ) -> Framebuffer {
+    rasterize_counted(scene, footprints, bins, stats).over_colour(scene.background)
+}
+
+/// Rasterize footprints at the scene's size in time bins `bins`, counting into `stats`.
+fn rasterize_counted<const B: usize>(
+    scene: &Scene,
+    footprints: &[Footprint],
+    bins: &TimeBins<B>,
+    stats: &mut Stats,
+) -> Layer {
     let (layer, raster) = rasterize(
         footprints,
         &Target::new(scene.camera.width, scene.camera.height),
         bins,
     );
     stats.add_raster(&raster);
-    layer.over_colour(scene.background)
+    layer
 }

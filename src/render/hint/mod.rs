@@ -153,14 +153,6 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
     let target = Target::new(width, height);
     let (object_layer, raster) = rasterize(&object_footprints, &target, &TimeBins::INSTANT);
     stats.add_raster(&raster);
-    let drawn_layer = if style.object.draw {
-        object_layer.clone()
-    } else {
-        let (layer, raster) = rasterize(&object_footprints[..stills], &target, &TimeBins::INSTANT);
-        stats.add_raster(&raster);
-        layer
-    }
-    .with_opacity(style.object.opacity as f32);
 
     let trail = &style.trail;
     let window = before_flash(shutter, flash, trail.offset, trail.length);
@@ -230,9 +222,14 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             .map(|(i, &e)| e && is_sampled(i, trail.density))
             .collect();
         if trail.draw && window[1] > window[0] {
-            let (footprints, culled) = object_trails(
-                scene, style, object, segments, &copies, window, max_piece, fastest, &emits,
-            );
+            let context = TrailContext {
+                scene,
+                style,
+                window,
+                fastest_px: fastest,
+            };
+            let (footprints, culled) =
+                object_trails(&context, object, segments, &copies, max_piece, &emits);
             stats.hint.trail_splats += footprints.len();
             stats.hint.trail_culled.add(&culled);
             trail_footprints.extend(footprints);
@@ -279,6 +276,14 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         height,
     );
 
+    let drawn_layer = if style.object.draw {
+        object_layer
+    } else {
+        let (layer, raster) = rasterize(&object_footprints[..stills], &target, &TimeBins::INSTANT);
+        stats.add_raster(&raster);
+        layer
+    }
+    .with_opacity(style.object.opacity as f32);
     let mut image = Framebuffer::filled(width, height, background);
     let mut trail_target = Target {
         texture: trail.texture.as_ref(),
@@ -388,20 +393,28 @@ fn times_within(segments: &[[f64; 2]], [start, end]: Window, max_piece: f64) -> 
     times
 }
 
+/// What every trail splat of one render shares.
+struct TrailContext<'a> {
+    scene: &'a Scene,
+    style: &'a Style,
+    /// The whole trail's window, over all copies.
+    window: Window,
+    /// The fastest screen path in the scene, px per exposure (the speed ramp's default top).
+    fastest_px: f64,
+}
+
 /// The trail splats of one moving object over its copy windows, and what was left out.
-#[allow(clippy::too_many_arguments)]
 fn object_trails(
-    scene: &Scene,
-    style: &Style,
+    context: &TrailContext,
     object: &Object,
     segments: &[[f64; 2]],
     copies: &[Window],
-    window: Window,
     max_piece: f64,
-    fastest_px: f64,
     emits: &[bool],
 ) -> (Vec<Footprint>, Culled) {
+    let scene = context.scene;
     let camera = &scene.camera;
+    let area_scale = context.style.trail.width * context.style.trail.width;
     let mut times = Vec::new();
     let mut pieces = Vec::new();
     for &copy in copies {
@@ -434,7 +447,6 @@ fn object_trails(
             return;
         }
         let surfel = &object.surfels[i];
-        let area_scale = style.trail.width * style.trail.width;
         let views: Vec<Option<SurfelView>> = instants
             .iter()
             .map(|instant| {
@@ -460,9 +472,7 @@ fn object_trails(
                     .map(|ellipse| {
                         let normals = [&instants[ia], &instants[ib]]
                             .map(|instant| instant.world_normal(surfel.normal));
-                        styled(
-                            ellipse, style, scene, a, b, normals, piece, window, fastest_px,
-                        )
+                        styled(context, ellipse, [a, b], normals, piece)
                     })
                     .and_then(|e| {
                         e.footprint(camera.width, camera.height)
@@ -476,21 +486,18 @@ fn object_trails(
     })
 }
 
-/// A motion ellipse dressed as a trail splat: colour from the style's source, weight scaled by
-/// intensity, fade, N·L and N·V (Guan & Mueller §4), the style's texture and blending.
-#[allow(clippy::too_many_arguments)]
+/// A motion ellipse of a piece, whose ends are seen as `a` and `b` with world normals `normals`,
+/// dressed as a trail splat: colour from the style's source, weight scaled by intensity, fade,
+/// N·L and N·V (Guan & Mueller §4), the style's texture and blending.
 fn styled(
+    context: &TrailContext,
     mut ellipse: ScreenSplat,
-    style: &Style,
-    scene: &Scene,
-    a: &SurfelView,
-    b: &SurfelView,
+    [a, b]: [&SurfelView; 2],
     normals: [glam::DVec3; 2],
     piece: &Piece,
-    [start, end]: Window,
-    fastest_px: f64,
 ) -> ScreenSplat {
-    let trail = &style.trail;
+    let (scene, trail, fastest_px) = (context.scene, &context.style.trail, context.fastest_px);
+    let [start, end] = context.window;
     let duration = scene.shutter.duration();
     // Where along the trail the piece lies: 0 at its oldest end, 1 at its newest.
     let along = if end > start {

@@ -75,6 +75,20 @@ pub(super) struct AffineKernel {
     depth_gradient: DVec2,
 }
 
+impl AffineKernel {
+    /// Screen boxes of the cut-off ellipse at the sub-frame's two ends: the covariance's
+    /// diagonal (the conic's, divided by its determinant) gives the half-extents.
+    fn end_boxes(&self) -> [[f64; 4]; 2] {
+        let [xx, xy, yy] = self.conic;
+        let det = xx * yy - xy * xy;
+        let half = DVec2::new((yy / det).sqrt(), (xx / det).sqrt()) * CUTOFF_SIGMAS + 1.0;
+        [-1.0, 1.0].map(|sign| {
+            let c = self.centre + self.half_motion * sign;
+            [c.x - half.x, c.y - half.y, c.x + half.x, c.y + half.y]
+        })
+    }
+}
+
 /// What a kernel leaves on one pixel: the part of its time on the ray and how it weighs.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Fragment {
@@ -140,7 +154,6 @@ impl Kernel {
     /// axes `axes` at its middle; `density` is the surfel's area over the area of its axes'
     /// parallelogram (both in object space, so that a keyframe's scale cancels). `None` when it
     /// has no area.
-    #[allow(clippy::too_many_arguments)]
     pub fn new(
         camera: &Camera,
         p0: DVec3,
@@ -208,34 +221,11 @@ impl Kernel {
     /// A kernel reaching behind the near plane is bounded by the whole image.
     pub fn screen_bound(&self, camera: &Camera) -> Option<([u32; 4], Vec<DVec2>)> {
         let (w, h) = (f64::from(camera.width), f64::from(camera.height));
-        let mut boxes = [[
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ]; 2];
-        if let Some(affine) = &self.affine {
-            // The covariance's diagonal gives the ellipse's half-extents (times the cut-off).
-            let [xx, xy, yy] = affine.conic;
-            let det = xx * yy - xy * xy;
-            let half = DVec2::new((yy / det).sqrt(), (xx / det).sqrt()) * CUTOFF_SIGMAS + 1.0;
-            for (end, bound) in boxes.iter_mut().enumerate() {
-                let c = affine.centre + affine.half_motion * if end == 0 { -1.0 } else { 1.0 };
-                *bound = [c.x - half.x, c.y - half.y, c.x + half.x, c.y + half.y];
-            }
-        }
-        for (end, bound) in boxes.iter_mut().enumerate() {
-            if self.affine.is_some() {
-                break;
-            }
-            let centre = self.centre + self.half_motion * if end == 0 { -1.0 } else { 1.0 };
-            for i in 0..BOUND_SAMPLES {
-                let angle = std::f64::consts::TAU * i as f64 / BOUND_SAMPLES as f64;
-                let p = centre
-                    + CUTOFF_SIGMAS
-                        * (1.0 + BOUND_MARGIN)
-                        * (self.axes[0] * angle.cos() + self.axes[1] * angle.sin());
-                let Some((px, _)) = camera.project(p) else {
+        let boxes = match &self.affine {
+            Some(affine) => affine.end_boxes(),
+            None => match self.projected_end_boxes(camera) {
+                Some(boxes) => boxes,
+                None => {
                     let hull = vec![
                         DVec2::ZERO,
                         DVec2::new(w, 0.0),
@@ -243,15 +233,9 @@ impl Kernel {
                         DVec2::new(0.0, h),
                     ];
                     return Some(([0, 0, camera.width, camera.height], hull));
-                };
-                *bound = [
-                    bound[0].min(px.x - 1.0),
-                    bound[1].min(px.y - 1.0),
-                    bound[2].max(px.x + 1.0),
-                    bound[3].max(px.y + 1.0),
-                ];
-            }
-        }
+                }
+            },
+        };
         let union = [
             boxes[0][0].min(boxes[1][0]),
             boxes[0][1].min(boxes[1][1]),
@@ -267,6 +251,37 @@ impl Kernel {
         ];
         (bounds[0] < bounds[2] && bounds[1] < bounds[3])
             .then(|| (bounds, hull_of_boxes(boxes[0], boxes[1])))
+    }
+
+    /// Screen boxes [x0, y0, x1, y1] of the cut-off ellipses at the sub-frame's two ends, from
+    /// points projected around them (1 px wider, for the pre-filter's tail and rounding); `None`
+    /// when a point lies behind the near plane.
+    fn projected_end_boxes(&self, camera: &Camera) -> Option<[[f64; 4]; 2]> {
+        let mut boxes = [[0.0; 4]; 2];
+        for (bound, sign) in boxes.iter_mut().zip([-1.0, 1.0]) {
+            *bound = [
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ];
+            let centre = self.centre + self.half_motion * sign;
+            for i in 0..BOUND_SAMPLES {
+                let angle = std::f64::consts::TAU * i as f64 / BOUND_SAMPLES as f64;
+                let p = centre
+                    + CUTOFF_SIGMAS
+                        * (1.0 + BOUND_MARGIN)
+                        * (self.axes[0] * angle.cos() + self.axes[1] * angle.sin());
+                let (px, _) = camera.project(p)?;
+                *bound = [
+                    bound[0].min(px.x - 1.0),
+                    bound[1].min(px.y - 1.0),
+                    bound[2].max(px.x + 1.0),
+                    bound[3].max(px.y + 1.0),
+                ];
+            }
+        }
+        Some(boxes)
     }
 
     /// The plane and dual basis for evaluating rays; `index` names the kernel in fragments.

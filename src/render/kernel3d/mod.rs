@@ -23,11 +23,11 @@ mod abuffer;
 mod integral;
 mod kernel;
 
-use super::{Render, Stats};
+use super::{instant_layer, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{Cull, Culled, Instant};
-use crate::raster::{rasterize, Rejection, Target, TimeBins, TILE_PX};
+use crate::raster::{Rejection, TILE_PX};
 use crate::scene::{Object, Scene};
 use abuffer::{resolve_approximate, resolve_exact, Resolved};
 use glam::{DVec2, DVec3};
@@ -119,13 +119,13 @@ pub(super) fn render(
         }
     }
 
-    let visible_depth: Option<Vec<[Vec<f32>; 2]>> =
-        (visibility == Visibility::Approximate).then(|| {
-            times
-                .windows(2)
-                .map(|pair| [pair[0], pair[1]].map(|t| visible_depth_at(scene, t)))
-                .collect()
-        });
+    // §5.1's depth buffers, one per sub-frame end (shared by the sub-frames that meet there).
+    let visible_depth: Option<Vec<Vec<f32>>> = (visibility == Visibility::Approximate).then(|| {
+        times
+            .iter()
+            .map(|&t| instant_layer(scene, t, &mut Stats::default()).front_depth)
+            .collect()
+    });
     let off_screen = stats.culled.off_screen;
     let (tiles, bounds) = bin(scene, &kernels, &mut stats.culled);
     stats.kernel3d.kernels = kernels.len() - (stats.culled.off_screen - off_screen);
@@ -214,61 +214,39 @@ fn kernels_over(
 ) -> Vec<Kernel> {
     let camera = &scene.camera;
     let mut kernels = Vec::new();
-    {
-        let instants =
-            [t0, 0.5 * (t0 + t1), t1].map(|t| Instant::new(camera, &object.motion.pose_at(t)));
-        let [start, middle, end] = &instants;
-        let results: Vec<Result<Kernel, Cull>> = object
-            .surfels
-            .par_iter()
-            .map(|surfel| {
-                let (p0, p1) = (
-                    start.view_point(surfel.position),
-                    end.view_point(surfel.position),
-                );
-                if !(-p0.z >= camera.near || -p1.z >= camera.near) {
-                    return Err(Cull::BehindNear);
-                }
-                // Culled when it faces away at both ends, as blur does (and Heinzle §5.2).
-                let facing =
-                    |instant: &Instant, p: DVec3| instant.view_vector(surfel.normal).dot(p) < 0.0;
-                if !(facing(start, p0) || facing(end, p1)) {
-                    return Err(Cull::BackFacing);
-                }
-                let axes = [surfel.axis_u, surfel.axis_v].map(|a| middle.view_vector(a));
-                let colour = scene
-                    .lighting
-                    .shade(surfel.colour, middle.world_normal(surfel.normal));
-                let density = surfel.area / surfel.axis_u.cross(surfel.axis_v).length();
-                Kernel::new(camera, p0, p1, axes, density, colour, window)
-                    .ok_or(Cull::Raster(Rejection::Degenerate))
-            })
-            .collect();
-        for result in results {
-            culled.keep(result, &mut kernels);
-        }
+    let instants =
+        [t0, 0.5 * (t0 + t1), t1].map(|t| Instant::new(camera, &object.motion.pose_at(t)));
+    let [start, middle, end] = &instants;
+    let results: Vec<Result<Kernel, Cull>> = object
+        .surfels
+        .par_iter()
+        .map(|surfel| {
+            let (p0, p1) = (
+                start.view_point(surfel.position),
+                end.view_point(surfel.position),
+            );
+            if !(-p0.z >= camera.near || -p1.z >= camera.near) {
+                return Err(Cull::BehindNear);
+            }
+            // Culled when it faces away at both ends, as blur does (and Heinzle §5.2).
+            let facing =
+                |instant: &Instant, p: DVec3| instant.view_vector(surfel.normal).dot(p) < 0.0;
+            if !(facing(start, p0) || facing(end, p1)) {
+                return Err(Cull::BackFacing);
+            }
+            let axes = [surfel.axis_u, surfel.axis_v].map(|a| middle.view_vector(a));
+            let colour = scene
+                .lighting
+                .shade(surfel.colour, middle.world_normal(surfel.normal));
+            let density = surfel.area / surfel.axis_u.cross(surfel.axis_v).length();
+            Kernel::new(camera, p0, p1, axes, density, colour, window)
+                .ok_or(Cull::Raster(Rejection::Degenerate))
+        })
+        .collect();
+    for result in results {
+        culled.keep(result, &mut kernels);
     }
     kernels
-}
-
-/// Depth of the visible surface at time `t` per pixel: the depth buffers of §5.1.
-fn visible_depth_at(scene: &Scene, t: f64) -> Vec<f32> {
-    let mut footprints = Vec::new();
-    let mut culled = Culled::default();
-    for object in &scene.objects {
-        crate::project::object_footprints_at(
-            &scene.camera,
-            &scene.lighting,
-            object,
-            t,
-            &mut footprints,
-            &mut culled,
-        );
-    }
-    let target = Target::new(scene.camera.width, scene.camera.height);
-    rasterize(&footprints, &target, &TimeBins::INSTANT)
-        .0
-        .front_depth
 }
 
 /// Per tile, the kernels whose screen bound (the hull of their end ellipses' boxes) reaches it,
@@ -328,7 +306,7 @@ fn resolve_tile(
     [x0, y0]: [u32; 2],
     exposure: [f64; 2],
     windows: &[[f64; 2]],
-    visible_depth: Option<&[[Vec<f32>; 2]]>,
+    visible_depth: Option<&[Vec<f32>]>,
 ) -> (Vec<Resolved>, usize, usize) {
     let camera = &scene.camera;
     let x1 = (x0 + TILE_PX).min(camera.width);
@@ -366,7 +344,8 @@ fn resolve_tile(
                 let p = (y0 as usize + i / w) * camera.width as usize + x0 as usize + i % w;
                 // §5.5: the passes run per sub-frame and add up, weighted by the shutter.
                 let mut sum = Resolved::default();
-                for (window, [start, end]) in windows.iter().zip(depths) {
+                for (window, ends) in windows.iter().zip(depths.windows(2)) {
+                    let (start, end) = (&ends[0], &ends[1]);
                     let r = resolve_approximate(list, *window, [start[p], end[p]]);
                     for c in 0..3 {
                         sum.colour[c] += r.colour[c];
