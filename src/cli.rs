@@ -193,7 +193,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
             )));
         }
     }
+    let loading = Instant::now();
     let scene = load(&args.scene, &args.image)?;
+    let load_seconds = loading.elapsed().as_secs_f64();
     let start = Instant::now();
     let plan = Plan::new(&scene, args.tolerance);
     if args.style.is_some() && args.method != Method::Hint {
@@ -236,6 +238,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
         output::write_exr(&out.image, exr)?;
     }
     if args.explain {
+        println!(
+            "scene: {} surfels read and sampled in {load_seconds:.3} s (files, point clouds, meshes, volume iso-surfaces)",
+            scene.surfel_count()
+        );
         print!("{}", plan.explain(Some(&out.stats.culled)));
         match args.method {
             Method::Hint => print!("{}", out.stats.hint.explain()),
