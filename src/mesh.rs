@@ -809,18 +809,17 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    fn shared_data(relative: &str) -> PathBuf {
-        Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../shared/data/meshes"
-        ))
-        .join(relative)
+    /// A file the repository ships for tests (`tests/data`) or for the gallery (`gallery/data`).
+    fn repository_data(relative: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
     }
 
     #[test]
     fn the_bunny_reads_alike_from_obj_and_ply() {
-        let from_ply = Mesh::read(&shared_data("bunny_bun_zipper.ply")).unwrap();
-        let from_obj = Mesh::read(&shared_data("bunny_stanford-bunny.obj")).unwrap();
+        let from_ply =
+            Mesh::read(&repository_data("gallery/data/bunny_bun_zipper.ply.gz")).unwrap();
+        let from_obj =
+            Mesh::read(&repository_data("tests/data/bunny_stanford-bunny.obj.gz")).unwrap();
         assert_eq!(from_ply.positions.len(), 35_947);
         assert_eq!(from_ply.triangles.len(), 69_451);
         assert_eq!(from_obj.triangles, from_ply.triangles);
@@ -836,19 +835,23 @@ mod tests {
     #[test]
     fn real_meshes_read_with_their_counts() {
         // Binary little-endian, with a zero vertex normal that a mesh does not need.
-        let dragon = Mesh::read(&shared_data("dragon_100k.ply")).unwrap();
+        let dragon = Mesh::read(&repository_data("tests/data/dragon_100k.ply.gz")).unwrap();
         assert_eq!(
             (dragon.positions.len(), dragon.triangles.len()),
             (50_002, 100_000)
         );
-        let armadillo = Mesh::read(&shared_data("armadillo_100k.obj")).unwrap();
+        let armadillo = Mesh::read(&repository_data("gallery/data/armadillo_100k.obj.gz")).unwrap();
         assert_eq!(
             (armadillo.positions.len(), armadillo.triangles.len()),
             (49_990, 99_976)
         );
         // Closed and wound outward: the signed volume Σ a·(b×c)/6 is positive.
-        for name in ["armadillo_100k.obj", "fandisk.obj", "rocker_arm.obj"] {
-            let mesh = Mesh::read(&shared_data(name)).unwrap();
+        for name in [
+            "armadillo_100k.obj.gz",
+            "fandisk.obj.gz",
+            "rocker_arm.obj.gz",
+        ] {
+            let mesh = Mesh::read(&repository_data(&format!("gallery/data/{name}"))).unwrap();
             let volume: f64 = mesh
                 .triangles
                 .iter()

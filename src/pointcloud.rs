@@ -1977,13 +1977,13 @@ mod tests {
         assert!(matches!(missing, Error::Io { .. }));
     }
 
-    fn shared_data(relative: &str) -> PathBuf {
-        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(relative)
+    fn test_data(name: &str) -> PathBuf {
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data")).join(name)
     }
 
     #[test]
     fn reads_ascii_range_scan_with_trailing_list_element() {
-        let cloud = read_ply(&shared_data("points/bunny_range_scan_bun000.ply")).unwrap();
+        let cloud = read_ply(&test_data("bunny_range_scan_bun000.ply.gz")).unwrap();
         assert_eq!(cloud.positions.len(), 40_256);
         assert!(cloud.normals.is_none() && cloud.colors.is_none() && cloud.radii.is_none());
         let first = [-0.06325f32, 0.0359793, 0.0420873].map(f64::from);
@@ -1992,7 +1992,7 @@ mod tests {
 
     #[test]
     fn reads_binary_mesh_except_for_its_one_zero_normal() {
-        let path = shared_data("meshes/dragon_100k.ply");
+        let path = test_data("dragon_100k.ply.gz");
         // The file stores a zero normal for vertex 9121 (a vertex of degenerate faces only).
         let message = read_ply(&path).unwrap_err().to_string();
         assert!(
@@ -2001,7 +2001,7 @@ mod tests {
         );
 
         // With that one normal repaired in memory, every vertex loads, faces skipped.
-        let mut bytes = std::fs::read(&path).unwrap();
+        let mut bytes = read_file(&path, MAX_PLY_BYTES).unwrap();
         let header_end = b"end_header\n";
         let body = header_end.len()
             + bytes
