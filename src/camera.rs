@@ -3,7 +3,7 @@
 //! Conventions: right-handed world, the camera looks down its −Z, pixel (0,0) is the top-left pixel
 //! and pixel centres sit at half-integers, so the image centre is (width/2, height/2).
 
-use glam::{DAffine3, DVec2, DVec3};
+use glam::{DAffine3, DMat3, DVec2, DVec3};
 
 /// A pinhole camera with its image size.
 #[derive(Clone, Debug)]
@@ -50,7 +50,7 @@ impl Camera {
         height: u32,
         near: f64,
     ) -> Self {
-        let view = DAffine3::look_at_rh(eye, target, up);
+        let view = view_transform(eye, target, up);
         let focal_px = 0.5 * f64::from(height) / (0.5 * fov_y_degrees.to_radians()).tan();
         Camera {
             view,
@@ -100,6 +100,22 @@ impl Camera {
             row_x: DVec3::new(inv, 0.0, inv * p_view.x / depth),
             row_y: DVec3::new(0.0, -inv, -inv * p_view.y / depth),
         }
+    }
+}
+
+/// The right-handed world → view transform of a camera at `eye` looking at `target`: the camera
+/// looks down −z, x is right and y is up (the component of `up` across the view direction).
+fn view_transform(eye: DVec3, target: DVec3, up: DVec3) -> DAffine3 {
+    let forward = (target - eye).normalize();
+    let right = forward.cross(up).normalize();
+    let up = right.cross(forward);
+    DAffine3 {
+        matrix3: DMat3::from_cols(
+            DVec3::new(right.x, up.x, -forward.x),
+            DVec3::new(right.y, up.y, -forward.y),
+            DVec3::new(right.z, up.z, -forward.z),
+        ),
+        translation: DVec3::new(-eye.dot(right), -eye.dot(up), eye.dot(forward)),
     }
 }
 

@@ -7,10 +7,10 @@ use std::sync::Arc;
 use std::time::Instant;
 use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
-use streak::render::Visibility;
-use streak::study::{self, StudyOptions, DEFAULT_TOLERANCE_PX};
+use streak::render::{Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES, MAX_SUBFRAMES};
+use streak::study::{self, StudyOptions};
 use streak::style::Style;
-use streak::{output, render, Error, Method, Plan, Result, Scene, Settings};
+use streak::{output, Error, Method, Plan, Result, Scene};
 
 /// Motion blur and motion hints for point-based geometry.
 #[derive(Parser)]
@@ -29,6 +29,21 @@ enum Command {
     /// Render every scene of a gallery folder with each method and style, and write a page that
     /// compares them.
     Gallery(GalleryArgs),
+}
+
+/// The rendering methods, as the command line names them; [`method`] adds each one's settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum MethodName {
+    /// Sharp EWA splatting at one instant.
+    Static,
+    /// Motion ellipses from summed covariances, one pass.
+    Blur,
+    /// Average of N static frames at stratified shutter times.
+    Reference,
+    /// The object sharp at the flash over a styled trail (a motion hint).
+    Hint,
+    /// 3D spatio-temporal kernels integrated along pixel rays, with an A-buffer.
+    Kernel3d,
 }
 
 /// Options shared by every command that renders.
@@ -51,27 +66,28 @@ struct RenderArgs {
     scene: PathBuf,
     /// Rendering method.
     #[arg(short, long, value_enum, default_value = "blur")]
-    method: Method,
+    method: MethodName,
     /// Output image: .png (sRGB) or .exr (linear float).
     #[arg(short, long, default_value = "out.png")]
     output: PathBuf,
     /// Also write the linear float image to this .exr file.
     #[arg(long)]
     exr: Option<PathBuf>,
-    /// Frames averaged by `reference`.
-    #[arg(long, default_value_t = 64, value_parser = sample_count())]
-    samples: usize,
+    /// Frames averaged by `reference` [default: 64].
+    #[arg(long, value_parser = sample_count())]
+    samples: Option<usize>,
     /// Instant drawn by `static`, in normalized frame time [0, 1] (default: mid-exposure).
     #[arg(long)]
     time: Option<f64>,
-    /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`, `hint`).
-    #[arg(long, default_value_t = DEFAULT_TOLERANCE_PX)]
-    tolerance: f64,
+    /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`, `hint`, and
+    /// `kernel3d` without `--subframes`) [default: 1].
+    #[arg(long)]
+    tolerance: Option<f64>,
     /// Style file for `hint` (default: the scene's `style`, else the built-in default style).
     #[arg(long)]
     style: Option<PathBuf>,
     /// Equal sub-frames of `kernel3d` (default: the plan's sub-segments).
-    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=streak::render::MAX_SUBFRAMES as u64))]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_SUBFRAMES as u64))]
     subframes: Option<usize>,
     /// `kernel3d` with the paper's GPU approximation of visibility instead of the A-buffer.
     #[arg(long)]
@@ -126,9 +142,9 @@ struct GalleryArgs {
     image: ImageArgs,
 }
 
-/// Sample counts from 1 to [`streak::render::MAX_SAMPLES`].
+/// Sample counts from 1 to [`MAX_SAMPLES`].
 fn sample_count() -> clap::builder::RangedU64ValueParser<usize> {
-    clap::builder::RangedU64ValueParser::new().range(1..=streak::render::MAX_SAMPLES as u64)
+    clap::builder::RangedU64ValueParser::new().range(1..=MAX_SAMPLES as u64)
 }
 
 /// Parse the command line and do the job.
@@ -175,60 +191,113 @@ fn bar(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-fn run_render(args: RenderArgs) -> Result<()> {
-    if !streak::plan::TOLERANCE_RANGE_PX.contains(&args.tolerance) {
-        let (lo, hi) = (
-            streak::plan::TOLERANCE_RANGE_PX.start(),
-            streak::plan::TOLERANCE_RANGE_PX.end(),
-        );
-        return Err(Error::Usage(format!(
-            "--tolerance {}: must be between {lo} and {hi} pixels",
-            args.tolerance
-        )));
-    }
-    if let Some(t) = args.time {
-        if !(0.0..=1.0).contains(&t) {
-            return Err(Error::Usage(format!(
-                "--time {t}: frame time is normalized to [0, 1]"
-            )));
+/// The method `args` ask for, with its settings; an option that the method does not read is an
+/// error, not ignored.
+fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
+    let name = args.method;
+    let only = |given: bool, option: &str, methods: &[MethodName]| {
+        if given && !methods.contains(&name) {
+            let names: Vec<String> = methods
+                .iter()
+                .map(|m| format!("-m {}", method_name(*m)))
+                .collect();
+            Err(Error::Usage(format!(
+                "{option} applies to {} only, not -m {}",
+                names.join(" and "),
+                method_name(name)
+            )))
+        } else {
+            Ok(())
         }
+    };
+    only(args.time.is_some(), "--time", &[MethodName::Static])?;
+    only(
+        args.samples.is_some(),
+        "--samples",
+        &[MethodName::Reference],
+    )?;
+    only(args.style.is_some(), "--style", &[MethodName::Hint])?;
+    only(
+        args.subframes.is_some(),
+        "--subframes",
+        &[MethodName::Kernel3d],
+    )?;
+    only(args.approximate, "--approximate", &[MethodName::Kernel3d])?;
+    only(
+        args.tolerance.is_some(),
+        "--tolerance",
+        &[MethodName::Blur, MethodName::Hint, MethodName::Kernel3d],
+    )?;
+    if args.tolerance.is_some() && args.subframes.is_some() {
+        return Err(Error::Usage(
+            "--tolerance plans kernel3d's sub-frames; with --subframes there is nothing to plan: give one of them"
+                .into(),
+        ));
     }
+    let tolerance_px = args.tolerance.unwrap_or(DEFAULT_TOLERANCE_PX);
+    Ok(match name {
+        MethodName::Static => Method::Static { time: args.time },
+        MethodName::Reference => Method::Reference {
+            samples: args.samples.unwrap_or(64),
+        },
+        MethodName::Blur => Method::Blur { tolerance_px },
+        MethodName::Hint => Method::Hint {
+            style: match args.style.as_ref().or(scene.style.as_ref()) {
+                Some(path) => Arc::new(Style::load(path)?),
+                None => Arc::new(Style::default()),
+            },
+            tolerance_px,
+        },
+        MethodName::Kernel3d => Method::Kernel3d {
+            subframes: match args.subframes {
+                Some(n) => Subframes::Equal(n),
+                None => Subframes::Planned { tolerance_px },
+            },
+            visibility: if args.approximate {
+                Visibility::Approximate
+            } else {
+                Visibility::Exact
+            },
+        },
+    })
+}
+
+fn method_name(name: MethodName) -> &'static str {
+    match name {
+        MethodName::Static => "static",
+        MethodName::Blur => "blur",
+        MethodName::Reference => "reference",
+        MethodName::Hint => "hint",
+        MethodName::Kernel3d => "kernel3d",
+    }
+}
+
+/// A method's setting error in the command line's words.
+fn as_option(error: Error) -> Error {
+    match error {
+        Error::Invalid { field, message } => Error::Usage(format!("--{field} {message}")),
+        other => other,
+    }
+}
+
+fn run_render(args: RenderArgs) -> Result<()> {
     let loading = Instant::now();
     let scene = load(&args.scene, &args.image)?;
     let load_seconds = loading.elapsed().as_secs_f64();
+    let method = method(&args, &scene)?;
+    method.check().map_err(as_option)?;
     let start = Instant::now();
-    let plan = Plan::new(&scene, args.tolerance);
-    if args.style.is_some() && args.method != Method::Hint {
-        return Err(Error::Usage(format!(
-            "--style applies to -m hint only, not -m {}",
-            args.method.name()
-        )));
-    }
-    let style = match args.style.as_ref().or(scene.style.as_ref()) {
-        Some(path) if args.method == Method::Hint => Some(Arc::new(Style::load(path)?)),
+    let plan = Plan::new(&scene, &method).map_err(as_option)?;
+    let progress = match method {
+        Method::Reference { samples } => Some(bar(samples as u64, "reference frames")),
         _ => None,
     };
-    if (args.subframes.is_some() || args.approximate) && args.method != Method::Kernel3d {
-        return Err(Error::Usage(format!(
-            "--subframes and --approximate apply to -m kernel3d only, not -m {}",
-            args.method.name()
-        )));
-    }
-    let settings = Settings {
-        method: args.method,
-        time: args.time,
-        samples: args.samples,
-        style,
-        subframes: args.subframes,
-        visibility: if args.approximate {
-            Visibility::Approximate
-        } else {
-            Visibility::Exact
-        },
+    let tick = || {
+        if let Some(bar) = &progress {
+            bar.inc(1);
+        }
     };
-    let progress =
-        (args.method == Method::Reference).then(|| bar(args.samples as u64, "reference frames"));
-    let out = render(&scene, &plan, &settings, progress.as_ref());
+    let out = plan.render(Some(&tick));
     if let Some(b) = progress {
         b.finish_and_clear();
     }
@@ -243,16 +312,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
             scene.surfel_count()
         );
         print!("{}", plan.explain(Some(&out.stats.culled)));
-        match args.method {
-            Method::Hint => print!("{}", out.stats.hint.explain()),
-            Method::Kernel3d => print!("{}", out.stats.kernel3d.explain()),
-            _ => {}
-        }
+        print!("{}", out.stats.method.explain());
         println!(
-            "rendered {} footprints in {} frame(s) ({} reused) in {seconds:.3} s; tile lists: {} entries, longest {}",
+            "rendered {} footprints in {} frame(s) in {seconds:.3} s; tile lists: {} entries, longest {}",
             out.stats.footprints,
             out.stats.frames,
-            out.stats.reused_footprints,
             out.stats.tile_entries,
             out.stats.max_per_tile
         );
@@ -266,7 +330,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     eprintln!(
         "wrote {} ({} {}×{}, {seconds:.3} s)",
         args.output.display(),
-        args.method.name(),
+        method.name(),
         scene.camera.width,
         scene.camera.height
     );
@@ -310,7 +374,7 @@ fn run_study(args: StudyArgs) -> Result<()> {
     let mut report = study::table(&points);
     report
         .push_str("\nEqual error (the smallest reference sample count at least as accurate):\n\n");
-    for method in [Method::Blur, Method::Kernel3d] {
+    for method in ["blur", "kernel3d"] {
         report.push_str(&study::equal_error(&points, method));
     }
     std::fs::write(args.output.join("study.md"), &report)

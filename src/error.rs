@@ -22,6 +22,14 @@ pub enum Error {
         /// The operating system's reason.
         source: std::io::Error,
     },
+    /// A value out of its range where no file is involved (a scene or method built in code):
+    /// which setting, what is wrong and what would be right.
+    Invalid {
+        /// The setting at fault, as its builder or the command line names it.
+        field: String,
+        /// What is wrong and what would be right.
+        message: String,
+    },
     /// A request that is invalid on its face (a bad command-line value, an impossible size).
     Usage(String),
 }
@@ -33,6 +41,33 @@ impl Error {
             file: file.to_path_buf(),
             field: field.into(),
             message: message.into(),
+        }
+    }
+
+    /// A value out of its range at `field`, where no file is involved.
+    pub fn invalid(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Invalid {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// This error as found in `file` at `within`: an [`Error::Invalid`] becomes an
+    /// [`Error::Input`] whose field is `within.field` (or `within` when it is empty); other errors
+    /// are already placed and stay as they are.
+    #[must_use]
+    pub fn in_file(self, file: &Path, within: &str) -> Self {
+        match self {
+            Error::Invalid { field, message } => Error::Input {
+                file: file.to_path_buf(),
+                field: match (within.is_empty(), field.is_empty()) {
+                    (true, _) => field,
+                    (false, true) => within.to_string(),
+                    (false, false) => format!("{within}.{field}"),
+                },
+                message,
+            },
+            other => other,
         }
     }
 
@@ -54,6 +89,7 @@ impl fmt::Display for Error {
                 message,
             } => write!(f, "{}: {}: {}", file.display(), field, message),
             Error::Io { file, source } => write!(f, "{}: {}", file.display(), source),
+            Error::Invalid { field, message } => write!(f, "{field}: {message}"),
             Error::Usage(message) => f.write_str(message),
         }
     }

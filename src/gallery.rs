@@ -13,9 +13,8 @@ use crate::framebuffer::Framebuffer;
 use crate::metrics::{compare, ImageError};
 use crate::output::write_png;
 use crate::plan::{ObjectMotion, Plan};
-use crate::render::{render, Method, Settings};
+use crate::render::{render, Method, DEFAULT_TOLERANCE_PX};
 use crate::scene::Scene;
-use crate::study::DEFAULT_TOLERANCE_PX;
 use crate::style::Style;
 use indicatif::ProgressBar;
 use std::fmt::Write as _;
@@ -124,57 +123,36 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
         );
         let mut jobs = vec![
             (
-                Settings {
-                    method: Method::Reference,
+                Method::Reference {
                     samples: options.samples,
-                    ..Settings::default()
                 },
                 format!("N={}", options.samples),
             ),
-            (
-                Settings {
-                    method: Method::Static,
-                    ..Settings::default()
-                },
-                "t=mid".to_string(),
-            ),
-            (
-                Settings {
-                    method: Method::Blur,
-                    ..Settings::default()
-                },
-                format!("τ={DEFAULT_TOLERANCE_PX}px"),
-            ),
+            (Method::STATIC, "t=mid".to_string()),
+            (Method::BLUR, format!("τ={DEFAULT_TOLERANCE_PX}px")),
         ];
         jobs.extend(styles.iter().map(|style| {
             (
-                Settings {
-                    method: Method::Hint,
-                    style: Some(Arc::clone(style)),
-                    ..Settings::default()
+                Method::Hint {
+                    style: Arc::clone(style),
+                    tolerance_px: DEFAULT_TOLERANCE_PX,
                 },
                 style.name(),
             )
         }));
-        let plan = Plan::new(&scene, DEFAULT_TOLERANCE_PX);
+        let plan = Plan::new(&scene, &Method::BLUR)?;
         let mut reference: Option<Framebuffer> = None;
         let mut shots = Vec::new();
-        for (settings, knob) in jobs {
+        for (method, knob) in jobs {
             if let Some(bar) = progress {
-                bar.set_message(format!("{name} {} {knob}", settings.method.name()));
+                bar.set_message(format!("{name} {} {knob}", method.name()));
             }
             let start = Instant::now();
-            let image = render(
-                &scene,
-                &Plan::new(&scene, DEFAULT_TOLERANCE_PX),
-                &settings,
-                None,
-            )
-            .image;
+            let image = render(&scene, &method, None)?.image;
             let seconds = start.elapsed().as_secs_f64();
-            let file = match settings.method {
-                Method::Hint => format!("{name}-hint-{knob}.png"),
-                method => format!("{name}-{}.png", method.name()),
+            let file = match method {
+                Method::Hint { .. } => format!("{name}-hint-{knob}.png"),
+                _ => format!("{name}-{}.png", method.name()),
             };
             write_png(&image, &options.out_dir.join(&file))?;
             let error = match &reference {
@@ -185,7 +163,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
                 }
             };
             shots.push(Shot {
-                method: settings.method.name().to_string(),
+                method: method.name().to_string(),
                 knob,
                 file,
                 seconds,

@@ -11,7 +11,7 @@
 //! [`output`] writes images.
 //!
 //! ```
-//! use streak::{render, Method, Plan, Scene, Settings};
+//! use streak::{render, Method, Scene};
 //! let text = r#"
 //!     background = [0, 0, 0]
 //!     [camera]
@@ -30,9 +30,7 @@
 //!     translate = [1, 0, 0]
 //! "#;
 //! let scene = Scene::parse(text, "ball.toml".as_ref())?;
-//! let plan = Plan::new(&scene, 1.0);
-//! let settings = Settings { method: Method::Blur, ..Settings::default() };
-//! let image = render(&scene, &plan, &settings, None).image;
+//! let image = render(&scene, &Method::BLUR, None)?.image;
 //! assert_eq!(image.pixels.len(), 64 * 48);
 //! # Ok::<(), streak::Error>(())
 //! ```
@@ -44,13 +42,16 @@
 pub mod camera;
 pub mod error;
 pub mod framebuffer;
+#[cfg(feature = "cli")]
 pub mod gallery;
 pub mod geometry;
 pub mod mesh;
+#[cfg(feature = "cli")]
 pub mod metrics;
 pub mod motion;
 pub mod output;
 pub mod plan;
+#[cfg(feature = "cli")]
 pub mod plot;
 pub mod pointcloud;
 pub mod project;
@@ -58,6 +59,7 @@ pub mod raster;
 pub mod render;
 pub mod scene;
 pub mod shutter;
+#[cfg(feature = "cli")]
 pub mod study;
 pub mod style;
 pub mod volume;
@@ -65,5 +67,5 @@ pub mod volume;
 pub use error::{Error, Result};
 pub use framebuffer::Framebuffer;
 pub use plan::Plan;
-pub use render::{render, Method, Render, Settings};
+pub use render::{render, Method, Render, Stats, Subframes};
 pub use scene::Scene;

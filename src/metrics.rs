@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
+use crate::output::linear_to_srgb8;
 use rayon::prelude::*;
 
 /// Error of an image against a reference of the same size.
@@ -22,7 +23,7 @@ pub struct ImageError {
 ///
 /// - RMSE and PSNR are computed on the linear colour values as they are (not clamped), with a
 ///   peak of 1.0. PSNR of identical images is `f64::INFINITY`.
-/// - SSIM is computed on the luma of the sRGB-encoded 8-bit images (see [`linear_to_srgb8`]):
+/// - SSIM is computed on the luma of the sRGB-encoded 8-bit images (see [`crate::output::linear_to_srgb8`]):
 ///   Wang et al. 2004, 11×11 Gaussian window with σ = 1.5, K1 = 0.01, K2 = 0.03, luma in [0, 1];
 ///   near the border the window is cut to the image and renormalised, so every pixel counts.
 /// - ꟻLIP is NVIDIA's LDR-ꟻLIP on the sRGB-encoded 8-bit images at the default
@@ -79,24 +80,6 @@ pub fn compare(test: &Framebuffer, reference: &Framebuffer) -> Result<ImageError
         ssim,
         flip,
     })
-}
-
-/// Linear→sRGB 8-bit encoding used by PNG output and by the metrics (one function for the whole crate).
-///
-/// The value is clamped to [0, 1], encoded with the sRGB transfer curve (IEC 61966-2-1) and
-/// rounded to the nearest of 0..=255. NaN encodes as 0.
-pub fn linear_to_srgb8(v: f32) -> u8 {
-    let linear = if v.is_nan() {
-        0.0
-    } else {
-        f64::from(v).clamp(0.0, 1.0)
-    };
-    let encoded = if linear <= 0.003_130_8 {
-        12.92 * linear
-    } else {
-        1.055 * linear.powf(1.0 / 2.4) - 0.055
-    };
-    (encoded * 255.0).round() as u8
 }
 
 fn check_pixel_count(image: &Framebuffer, role: &str) -> Result<()> {
@@ -398,18 +381,5 @@ mod tests {
             error.ssim.is_finite() && error.flip.is_finite(),
             "{error:?}"
         );
-    }
-
-    #[test]
-    fn srgb_encoding_follows_the_standard_curve() {
-        assert_eq!(linear_to_srgb8(0.0), 0);
-        assert_eq!(linear_to_srgb8(1.0), 255);
-        // The linear segment ends at 0.0031308 → 12.92 × 0.0031308 × 255 = 10.31.
-        assert_eq!(linear_to_srgb8(0.003_130_8), 10);
-        // 1.055 × 0.5^(1/2.4) − 0.055 = 0.7354 → 187.5 → 188.
-        assert_eq!(linear_to_srgb8(0.5), 188);
-        assert_eq!(linear_to_srgb8(-0.5), 0);
-        assert_eq!(linear_to_srgb8(7.0), 255);
-        assert_eq!(linear_to_srgb8(f32::NAN), 0);
     }
 }

@@ -2,7 +2,6 @@
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
-use crate::metrics::linear_to_srgb8;
 use std::path::Path;
 
 /// Write `image` by the file's extension: `.png` (8-bit sRGB) or `.exr` (linear 32-bit float).
@@ -82,6 +81,24 @@ pub fn read_exr(path: &Path) -> Result<Framebuffer> {
     })
 }
 
+/// Linear→sRGB 8-bit encoding used by PNG output and by the metrics (one function for the whole crate).
+///
+/// The value is clamped to [0, 1], encoded with the sRGB transfer curve (IEC 61966-2-1) and
+/// rounded to the nearest of 0..=255. NaN encodes as 0.
+pub fn linear_to_srgb8(v: f32) -> u8 {
+    let linear = if v.is_nan() {
+        0.0
+    } else {
+        f64::from(v).clamp(0.0, 1.0)
+    };
+    let encoded = if linear <= 0.003_130_8 {
+        12.92 * linear
+    } else {
+        1.055 * linear.powf(1.0 / 2.4) - 0.055
+    };
+    (encoded * 255.0).round() as u8
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -102,5 +119,18 @@ mod tests {
         let e =
             write_image(&Framebuffer::filled(1, 1, [0.0; 3]), Path::new("out.jpg")).unwrap_err();
         assert!(e.to_string().contains(".png"));
+    }
+
+    #[test]
+    fn srgb_encoding_follows_the_standard_curve() {
+        assert_eq!(linear_to_srgb8(0.0), 0);
+        assert_eq!(linear_to_srgb8(1.0), 255);
+        // The linear segment ends at 0.0031308 → 12.92 × 0.0031308 × 255 = 10.31.
+        assert_eq!(linear_to_srgb8(0.003_130_8), 10);
+        // 1.055 × 0.5^(1/2.4) − 0.055 = 0.7354 → 187.5 → 188.
+        assert_eq!(linear_to_srgb8(0.5), 188);
+        assert_eq!(linear_to_srgb8(-0.5), 0);
+        assert_eq!(linear_to_srgb8(7.0), 255);
+        assert_eq!(linear_to_srgb8(f32::NAN), 0);
     }
 }

@@ -13,7 +13,9 @@
 //! interval to the piece around the crossing.
 
 use crate::camera::Camera;
+use crate::error::Result;
 use crate::project::Culled;
+use crate::render::{render_planned, Method, Progress, Render};
 use crate::scene::{Object, Scene};
 use glam::DVec2;
 
@@ -66,9 +68,12 @@ pub struct ObjectPlan {
     pub motion: ObjectMotion,
 }
 
-/// The plan for a scene.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Plan {
+/// The plan for rendering one scene with one method. It borrows the scene, so it cannot be paired
+/// with another scene's objects.
+#[derive(Clone, Debug)]
+pub struct Plan<'a> {
+    scene: &'a Scene,
+    method: Method,
     /// One entry per scene object, in scene order.
     pub objects: Vec<ObjectPlan>,
     /// Chord-deviation tolerance of the sub-segments, px.
@@ -77,17 +82,15 @@ pub struct Plan {
     pub lit: bool,
 }
 
-impl Plan {
-    /// Decide what `scene` needs at a screen-space tolerance of `tolerance_px` (clamped to
-    /// [`TOLERANCE_RANGE_PX`]).
-    #[must_use]
-    pub fn new(scene: &Scene, tolerance_px: f64) -> Plan {
-        let tolerance_px = if tolerance_px.is_nan() {
-            1.0
-        } else {
-            tolerance_px
-        }
-        .clamp(*TOLERANCE_RANGE_PX.start(), *TOLERANCE_RANGE_PX.end());
+impl<'a> Plan<'a> {
+    /// Decide what `scene` needs to be drawn by `method`: curved paths are cut to the method's
+    /// tolerance ([`Method::tolerance_px`]).
+    ///
+    /// # Errors
+    /// A setting of `method` out of its range ([`Method::check`]).
+    pub fn new(scene: &'a Scene, method: &Method) -> Result<Plan<'a>> {
+        method.check()?;
+        let tolerance_px = method.tolerance_px();
         let objects = scene
             .objects
             .iter()
@@ -110,11 +113,31 @@ impl Plan {
                 },
             })
             .collect();
-        Plan {
+        Ok(Plan {
+            scene,
+            method: method.clone(),
             objects,
             tolerance_px,
             lit: scene.lighting.is_lit(),
-        }
+        })
+    }
+
+    /// The scene this plan was made for.
+    #[must_use]
+    pub fn scene(&self) -> &'a Scene {
+        self.scene
+    }
+
+    /// The method this plan was made for.
+    #[must_use]
+    pub fn method(&self) -> &Method {
+        &self.method
+    }
+
+    /// Render the scene with the method. `progress`, when given, is called once per frame.
+    #[must_use]
+    pub fn render(&self, progress: Option<Progress>) -> Render {
+        render_planned(self, progress)
     }
 
     /// Whether anything moves.

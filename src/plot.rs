@@ -3,7 +3,6 @@
 
 use crate::error::{Error, Result};
 use crate::metrics::ImageError;
-use crate::render::Method;
 use plotters::coord::combinators::{LogCoord, WithKeyPoints};
 use plotters::coord::Shift;
 use plotters::element::DynElement;
@@ -186,7 +185,7 @@ fn render_svg(all_series: &[Series], title: &str) -> DrawResult<String> {
             let coordinates = series.points.iter().map(|p| (p.seconds, p.error.rmse));
             // A line joins one method across its quality knob; hints in different styles are
             // different pictures, not steps of a knob, so their points stand alone.
-            if series.method != Method::Hint.name() {
+            if series.method != "hint" {
                 chart.draw_series(LineSeries::new(
                     coordinates.clone(),
                     series_colour(index).stroke_width(2),

@@ -10,9 +10,10 @@ use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::metrics::compare;
 use crate::output::{read_exr, write_exr, write_png};
-use crate::plan::Plan;
 use crate::plot::StudyPoint;
-use crate::render::{render, Method, Render, Settings, Visibility, MAX_SAMPLES};
+use crate::render::{
+    render, Method, Render, Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
+};
 use crate::scene::Scene;
 use crate::style::Style;
 use indicatif::ProgressBar;
@@ -35,9 +36,6 @@ pub const KERNEL_SETTINGS: [(usize, Visibility); 7] = [
     (8, Visibility::Approximate),
 ];
 
-/// The tolerance `streak render -m blur` uses unless told otherwise.
-pub const DEFAULT_TOLERANCE_PX: f64 = 1.0;
-
 /// What a study measures.
 #[derive(Clone, Debug)]
 pub struct StudyOptions {
@@ -57,28 +55,34 @@ pub struct StudyOptions {
 /// One setting to study.
 #[derive(Clone, Debug)]
 struct Setting {
-    settings: Settings,
-    tolerance_px: f64,
+    method: Method,
 }
 
 impl Setting {
     fn knob(&self) -> String {
-        match self.settings.method {
-            Method::Static => "t=mid".to_string(),
-            Method::Blur => format!("τ={}px", self.tolerance_px),
-            Method::Reference => format!("N={}", self.settings.samples),
-            Method::Hint => format!("style={}", self.style_name()),
-            Method::Kernel3d => self.kernel_label("F=", ""),
+        match &self.method {
+            Method::Static { .. } => "t=mid".to_string(),
+            Method::Blur { tolerance_px } => format!("τ={tolerance_px}px"),
+            Method::Reference { samples } => format!("N={samples}"),
+            Method::Hint { style, .. } => format!("style={}", style.name()),
+            Method::Kernel3d { .. } => self.kernel_label("F=", ""),
         }
     }
 
     /// `kernel3d`'s sub-frames (or `plan`) after `prefix`, and `approximate` in the GPU mode.
     fn kernel_label(&self, prefix: &str, approximate: &str) -> String {
-        let subframes = self
-            .settings
-            .subframes
-            .map_or_else(|| "plan".to_string(), |n| format!("{prefix}{n}"));
-        match self.settings.visibility {
+        let Method::Kernel3d {
+            subframes,
+            visibility,
+        } = &self.method
+        else {
+            return String::new();
+        };
+        let subframes = match subframes {
+            Subframes::Equal(n) => format!("{prefix}{n}"),
+            Subframes::Planned { .. } => "plan".to_string(),
+        };
+        match visibility {
             Visibility::Exact => subframes,
             Visibility::Approximate => subframes + approximate,
         }
@@ -86,38 +90,31 @@ impl Setting {
 
     /// The plotted series: the method, with `kernel3d`'s GPU approximation a series of its own.
     fn series(&self) -> String {
-        match (self.settings.method, self.settings.visibility) {
-            (Method::Kernel3d, Visibility::Approximate) => {
-                format!("{} approx", Method::Kernel3d.name())
-            }
-            (method, _) => method.name().to_string(),
+        match &self.method {
+            Method::Kernel3d {
+                visibility: Visibility::Approximate,
+                ..
+            } => format!("{} approx", self.method.name()),
+            method => method.name().to_string(),
         }
     }
 
-    fn style_name(&self) -> String {
-        self.settings
-            .style
-            .as_ref()
-            .map_or_else(|| "default".into(), |s| s.name())
-    }
-
     fn file_stem(&self) -> String {
-        match self.settings.method {
-            Method::Static => "static".to_string(),
-            Method::Blur => format!("blur-tol{}", self.tolerance_px),
-            Method::Reference => format!("reference-n{}", self.settings.samples),
-            Method::Hint => format!("hint-{}", self.style_name()),
-            Method::Kernel3d => format!("kernel3d-{}", self.kernel_label("f", "-approx")),
+        match &self.method {
+            Method::Static { .. } => "static".to_string(),
+            Method::Blur { tolerance_px } => format!("blur-tol{tolerance_px}"),
+            Method::Reference { samples } => format!("reference-n{samples}"),
+            Method::Hint { style, .. } => format!("hint-{}", style.name()),
+            Method::Kernel3d { .. } => format!("kernel3d-{}", self.kernel_label("f", "-approx")),
         }
     }
 }
 
 /// Plan and render once, returning the image and the elapsed seconds.
-fn timed(scene: &Scene, setting: &Setting) -> (Render, f64) {
+fn timed(scene: &Scene, setting: &Setting) -> Result<(Render, f64)> {
     let start = Instant::now();
-    let plan = Plan::new(scene, setting.tolerance_px);
-    let out = render(scene, &plan, &setting.settings, None);
-    (out, start.elapsed().as_secs_f64())
+    let out = render(scene, &setting.method, None)?;
+    Ok((out, start.elapsed().as_secs_f64()))
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -148,13 +145,12 @@ pub fn converged_reference(
             return Ok(image);
         }
     }
-    let plan = Plan::new(scene, DEFAULT_TOLERANCE_PX);
-    let settings = Settings {
-        method: Method::Reference,
-        samples,
-        ..Settings::default()
+    let tick = || {
+        if let Some(bar) = progress {
+            bar.inc(1);
+        }
     };
-    let image = render(scene, &plan, &settings, progress).image;
+    let image = render(scene, &Method::Reference { samples }, Some(&tick))?.image;
     write_exr(&image, &path)?;
     Ok(image)
 }
@@ -192,18 +188,10 @@ pub fn run(
     )?;
 
     let mut setups = vec![Setting {
-        settings: Settings {
-            method: Method::Static,
-            ..Settings::default()
-        },
-        tolerance_px: DEFAULT_TOLERANCE_PX,
+        method: Method::STATIC,
     }];
     setups.extend(BLUR_TOLERANCES_PX.iter().map(|&tolerance_px| Setting {
-        settings: Settings {
-            method: Method::Blur,
-            ..Settings::default()
-        },
-        tolerance_px,
+        method: Method::Blur { tolerance_px },
     }));
     let styles = if options.styles.is_empty() {
         vec![Arc::new(Style::default())]
@@ -211,34 +199,24 @@ pub fn run(
         options.styles.clone()
     };
     setups.extend(styles.into_iter().map(|style| Setting {
-        settings: Settings {
-            method: Method::Hint,
-            style: Some(style),
-            ..Settings::default()
+        method: Method::Hint {
+            style,
+            tolerance_px: DEFAULT_TOLERANCE_PX,
         },
-        tolerance_px: DEFAULT_TOLERANCE_PX,
     }));
     // Heinzle §6: the kernels at 1–8 sub-frames, and the GPU approximation at 1, 4 and 8.
     for (subframes, visibility) in KERNEL_SETTINGS {
         setups.push(Setting {
-            settings: Settings {
-                method: Method::Kernel3d,
-                subframes: Some(subframes),
+            method: Method::Kernel3d {
+                subframes: Subframes::Equal(subframes),
                 visibility,
-                ..Settings::default()
             },
-            tolerance_px: DEFAULT_TOLERANCE_PX,
         });
     }
     let mut n = 1;
     while n <= options.max_samples {
         setups.push(Setting {
-            settings: Settings {
-                method: Method::Reference,
-                samples: n,
-                ..Settings::default()
-            },
-            tolerance_px: DEFAULT_TOLERANCE_PX,
+            method: Method::Reference { samples: n },
         });
         n *= 2;
     }
@@ -250,15 +228,13 @@ pub fn run(
     let mut points = Vec::with_capacity(setups.len());
     for setting in &setups {
         if let Some(bar) = progress {
-            bar.set_message(format!(
-                "{} {}",
-                setting.settings.method.name(),
-                setting.knob()
-            ));
+            bar.set_message(format!("{} {}", setting.method.name(), setting.knob()));
         }
-        let (first, first_time) = timed(scene, setting);
+        let (first, first_time) = timed(scene, setting)?;
         let mut times = vec![first_time];
-        times.extend((1..options.repeats.max(1)).map(|_| timed(scene, setting).1));
+        for _ in 1..options.repeats {
+            times.push(timed(scene, setting)?.1);
+        }
         write_png(
             &first.image,
             &options.out_dir.join(format!("{}.png", setting.file_stem())),
@@ -281,18 +257,15 @@ pub fn run(
 pub fn samples_to_match(points: &[StudyPoint], rmse: f64) -> Option<&StudyPoint> {
     points
         .iter()
-        .find(|p| p.method == Method::Reference.name() && p.error.rmse <= rmse)
+        .find(|p| p.method == "reference" && p.error.rmse <= rmse)
 }
 
 /// For each of `method`'s points, the reference sample count that first reaches its error and
 /// how its time compares: Heinzle Table 1's equal-error ratio. One line each, Markdown.
 #[must_use]
-pub fn equal_error(points: &[StudyPoint], method: Method) -> String {
+pub fn equal_error(points: &[StudyPoint], method: &str) -> String {
     let mut out = String::new();
-    for p in points
-        .iter()
-        .filter(|p| p.method.starts_with(method.name()))
-    {
+    for p in points.iter().filter(|p| p.method.starts_with(method)) {
         out.push_str(&match samples_to_match(points, p.error.rmse) {
             Some(r) => format!(
                 "- {} {} (RMSE {:.5}, {:.3} s) matches the reference at {} ({:.3} s): {:.2}× its time\n",
@@ -318,7 +291,7 @@ pub fn equal_error(points: &[StudyPoint], method: Method) -> String {
 pub fn table(points: &[StudyPoint]) -> String {
     let base = points
         .iter()
-        .find(|p| p.method == Method::Static.name())
+        .find(|p| p.method == Method::STATIC.name())
         .map_or(1.0, |p| p.seconds);
     let mut out = String::from("| method | knob | time (s) | × static | RMSE | PSNR (dB) | SSIM | FLIP |\n|---|---|---|---|---|---|---|---|\n");
     for p in points {

@@ -11,7 +11,7 @@ use streak::Method;
 fn the_test_splat_stays_below_full_coverage() {
     // The tests below read Σw straight off the image; that holds only while Σw < 1.
     let (scene, _) = translating_scene();
-    let peak = red(&draw(&scene, Method::Static, 1.0, 1))
+    let peak = red(&draw(&scene, &Method::STATIC))
         .into_iter()
         .fold(0.0, f64::max);
     assert!(peak > 0.1 && peak < 0.9, "{peak}");
@@ -20,7 +20,7 @@ fn the_test_splat_stays_below_full_coverage() {
 #[test]
 fn reference_converges_to_the_closed_form_time_integral() {
     let (scene, exact) = translating_scene();
-    let reference = red(&draw(&scene, Method::Reference, 1.0, 2048));
+    let reference = red(&draw(&scene, &Method::Reference { samples: 2048 }));
     // 2048 frames are 0.02 px apart: what is left is the 3σ truncation of each frame's Gaussian
     // across the streak (renormalized, so only its shape differs: ≈ 1.3 % in L1) and f32 rounding.
     let error = relative_l1(&reference, &exact);
@@ -32,12 +32,17 @@ fn blur_matches_the_closed_form_when_segments_are_short() {
     let (scene, exact) = translating_scene();
     // τ = 0.125 px allows sub-segments of at most 4 px: twelve ellipses no longer than the splat
     // is wide, so none needs widening; what is left is the truncation seen by the reference too.
-    let fine = red(&draw(&scene, Method::Blur, 0.125, 1));
+    let fine = red(&draw(
+        &scene,
+        &Method::Blur {
+            tolerance_px: 0.125,
+        },
+    ));
     let error = relative_l1(&fine, &exact);
     assert!(error < 0.03, "blur τ=0.125 vs exact: {error}");
     // One ellipse for the whole 48 px streak is Guan & Mueller's approximation: a Gaussian with
     // the streak's variance instead of a flat-topped streak, a third off in L1 here.
-    let single = red(&draw(&scene, Method::Blur, 100.0, 1));
+    let single = red(&draw(&scene, &Method::Blur { tolerance_px: 64.0 }));
     let coarse_error = relative_l1(&single, &exact);
     assert!(
         coarse_error > 5.0 * error,
@@ -61,7 +66,7 @@ fn one_segment_is_the_summed_covariance_gaussian() {
                 * (-0.5 * (dx * dx / vx + dy * dy / vy)).exp()
         })
         .collect();
-    let single = red(&draw(&scene, Method::Blur, 100.0, 1));
+    let single = red(&draw(&scene, &Method::Blur { tolerance_px: 64.0 }));
     // The render truncates at 3σ and renormalizes: ≈ 2 % in L1 for an isolated 2D Gaussian.
     let error = relative_l1(&single, &oracle);
     assert!(error < 0.03, "single ellipse vs Σ + mmᵀ/12: {error}");
@@ -70,8 +75,13 @@ fn one_segment_is_the_summed_covariance_gaussian() {
 #[test]
 fn blur_matches_the_reference_when_segments_are_short() {
     let (scene, _) = translating_scene();
-    let blur = red(&draw(&scene, Method::Blur, 0.125, 1));
-    let reference = red(&draw(&scene, Method::Reference, 1.0, 2048));
+    let blur = red(&draw(
+        &scene,
+        &Method::Blur {
+            tolerance_px: 0.125,
+        },
+    ));
+    let reference = red(&draw(&scene, &Method::Reference { samples: 2048 }));
     let error = relative_l1(&blur, &reference);
     assert!(error < 0.02, "blur vs reference: {error}");
 }
@@ -80,9 +90,14 @@ fn blur_matches_the_reference_when_segments_are_short() {
 fn a_blurred_splat_carries_the_energy_of_the_static_one() {
     let (scene, _) = translating_scene();
     let total = |image: Vec<f64>| image.iter().sum::<f64>();
-    let still = total(red(&draw(&scene, Method::Static, 1.0, 1)));
-    for tolerance in [100.0, 4.0, 1.0, 0.25] {
-        let blurred = total(red(&draw(&scene, Method::Blur, tolerance, 1)));
+    let still = total(red(&draw(&scene, &Method::STATIC)));
+    for tolerance in [64.0, 4.0, 1.0, 0.25] {
+        let blurred = total(red(&draw(
+            &scene,
+            &Method::Blur {
+                tolerance_px: tolerance,
+            },
+        )));
         // Pixel-centre sampling of Gaussians at least 0.55 px wide: within 0.5 %.
         assert!(
             (blurred / still - 1.0).abs() < 0.005,
@@ -106,10 +121,20 @@ fn swinging_scene() -> streak::Scene {
 #[test]
 fn curved_path_error_falls_as_sub_segments_increase() {
     let scene = swinging_scene();
-    let reference = draw(&scene, Method::Reference, 1.0, 2048);
+    let reference = draw(&scene, &Method::Reference { samples: 2048 });
     let errors: Vec<f64> = [8.0, 2.0, 0.5, 0.125]
         .iter()
-        .map(|&tolerance| rmse(&draw(&scene, Method::Blur, tolerance, 1), &reference))
+        .map(|&tolerance| {
+            rmse(
+                &draw(
+                    &scene,
+                    &Method::Blur {
+                        tolerance_px: tolerance,
+                    },
+                ),
+                &reference,
+            )
+        })
         .collect();
     for pair in errors.windows(2) {
         assert!(
@@ -138,13 +163,18 @@ fn zero_motion_blur_equals_static_equals_reference() {
             motion(&[(0.0, pose(DVec3::ZERO, 0.0))]),
         )],
     );
-    let static_image = draw(&still, Method::Static, 1.0, 1);
+    let static_image = draw(&still, &Method::STATIC);
     assert!(
         static_image.pixels.iter().any(|p| p[0] > 0.5),
         "the object must be visible"
     );
-    assert_eq!(draw(&still, Method::Blur, 1.0, 1), static_image);
-    assert!(rmse(&draw(&still, Method::Reference, 1.0, 16), &static_image) < 1e-6);
+    assert_eq!(draw(&still, &Method::BLUR), static_image);
+    assert!(
+        rmse(
+            &draw(&still, &Method::Reference { samples: 16 }),
+            &static_image
+        ) < 1e-6
+    );
 
     // Keyframes that move by 1e-9 units: the plan sees motion, so the motion-ellipse path runs,
     // and its limit must be the static image.
@@ -153,8 +183,10 @@ fn zero_motion_blur_equals_static_equals_reference() {
         (1.0, pose(DVec3::new(1e-9, 0.0, 0.0), 0.0)),
     ]);
     let moving = scene(camera, vec![object(surfels, barely)]);
-    assert!(streak::Plan::new(&moving, 1.0).any_moving());
-    let blurred = draw(&moving, Method::Blur, 1.0, 1);
+    assert!(streak::Plan::new(&moving, &Method::BLUR)
+        .unwrap()
+        .any_moving());
+    let blurred = draw(&moving, &Method::BLUR);
     let worst = blurred
         .pixels
         .iter()
@@ -187,8 +219,8 @@ fn ten_thousand_pixels_of_motion_keep_the_share_of_energy_inside_the_image() {
     let moving = scene(camera, vec![object(vec![surfel], fast)]);
     let energy =
         |image: &streak::Framebuffer| image.pixels.iter().map(|p| f64::from(p[0])).sum::<f64>();
-    let expected = energy(&draw(&still, Method::Static, 1.0, 1)) * 256.0 / travel_px;
-    let blurred = draw(&moving, Method::Blur, 1.0, 1);
+    let expected = energy(&draw(&still, &Method::STATIC)) * 256.0 / travel_px;
+    let blurred = draw(&moving, &Method::BLUR);
     assert!(blurred.pixels.iter().flatten().all(|c| c.is_finite()));
     let share = energy(&blurred);
     // The sub-segment count is capped (256 per keyframe interval), so ellipses are ~47 px long

@@ -351,6 +351,23 @@ fn command_line_mistakes_are_explained() {
         (vec!["render", "nope.toml"], "nope.toml"),
         (vec!["render", "scene.toml", "--threads", "0"], "--threads"),
         (vec!["render", "scene.toml", "-m", "sharp"], "sharp"),
+        // Options a method does not read are errors, not ignored.
+        (
+            vec!["render", "scene.toml", "-m", "blur", "--time", "0.5"],
+            "--time applies to -m static only",
+        ),
+        (
+            vec!["render", "scene.toml", "-m", "blur", "--samples", "8"],
+            "--samples applies to -m reference only",
+        ),
+        (
+            vec!["render", "scene.toml", "-m", "static", "--tolerance", "2"],
+            "--tolerance applies to -m blur and -m hint and -m kernel3d only",
+        ),
+        (
+            vec!["render", "scene.toml", "--tolerance", "1000"],
+            "--tolerance 1000: must be between",
+        ),
     ] {
         let out = streak(&args, &dir);
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -467,10 +484,7 @@ fn kernel_options_belong_to_kernel3d() {
         &["render", "scene.toml", "-m", "blur", "--subframes", "2"],
         &dir,
     );
-    assert_fails_with(
-        &out,
-        &["--subframes and --approximate apply to -m kernel3d only"],
-    );
+    assert_fails_with(&out, &["--subframes applies to -m kernel3d only"]);
     let out = streak(
         &["render", "scene.toml", "-m", "kernel3d", "--subframes", "0"],
         &dir,

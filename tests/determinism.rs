@@ -4,16 +4,15 @@ use std::path::Path;
 use std::sync::Arc;
 use streak::render::Visibility;
 use streak::style::Style;
-use streak::{render, Method, Plan, Scene, Settings};
+use streak::{render, Method, Scene, Subframes};
 
-fn render_with_threads(scene: &Scene, settings: &Settings, threads: usize) -> Vec<u8> {
+fn render_with_threads(scene: &Scene, method: &Method, threads: usize) -> Vec<u8> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .unwrap();
     pool.install(|| {
-        let plan = Plan::new(scene, 1.0);
-        let image = render(scene, &plan, settings, None).image;
+        let image = render(scene, method, None).unwrap().image;
         image
             .pixels
             .iter()
@@ -23,16 +22,14 @@ fn render_with_threads(scene: &Scene, settings: &Settings, threads: usize) -> Ve
     })
 }
 
-/// Render `settings` with 1, 2 and 5 threads and check the bits agree.
-fn assert_thread_count_independent(scene: &Scene, settings: &Settings) {
-    let one = render_with_threads(scene, settings, 1);
+/// Render with `method` on 1, 2 and 5 threads and check the bits agree.
+fn assert_thread_count_independent(scene: &Scene, method: &Method) {
+    let one = render_with_threads(scene, method, 1);
     assert!(one.iter().any(|&b| b != 0));
     for threads in [2, 5] {
         assert!(
-            one == render_with_threads(scene, settings, threads),
-            "{:?} {:?} differs with {threads} threads",
-            settings.method,
-            settings.style.as_ref().map(|s| s.name())
+            one == render_with_threads(scene, method, threads),
+            "{method:?} differs with {threads} threads",
         );
     }
 }
@@ -51,41 +48,29 @@ fn images_are_bit_identical_for_one_two_and_five_threads() {
     let scene = gallery_scene("torus_knot.toml");
     let styles = Path::new(env!("CARGO_MANIFEST_DIR")).join("styles");
     // Hints with a texture image, speed lines, and stroboscopic copies merged by depth.
-    let hint = |name: &str| Settings {
-        method: Method::Hint,
-        style: Some(Arc::new(Style::load(&styles.join(name)).unwrap())),
-        ..Settings::default()
+    let hint = |name: &str| Method::Hint {
+        style: Arc::new(Style::load(&styles.join(name)).unwrap()),
+        tolerance_px: 1.0,
     };
-    let settings = [
-        Settings {
-            method: Method::Static,
-            ..Settings::default()
-        },
-        Settings {
-            method: Method::Blur,
-            ..Settings::default()
-        },
-        Settings {
-            method: Method::Reference,
-            samples: 4,
-            ..Settings::default()
-        },
+    let methods = [
+        Method::STATIC,
+        Method::BLUR,
+        Method::Reference { samples: 4 },
         hint("brush.toml"),
         hint("ink-lines.toml"),
         hint("stroboscopic.toml"),
     ];
-    for settings in &settings {
-        assert_thread_count_independent(&scene, settings);
+    for method in &methods {
+        assert_thread_count_independent(&scene, method);
     }
     // The kernels on a lighter scene: the knot's 300,000 surfels at 160×120 pile thousands of
     // fragments on a pixel, which the A-buffer resolves slowly.
     let scene = gallery_scene("rod_rotating.toml");
     for visibility in [Visibility::Exact, Visibility::Approximate] {
-        let settings = Settings {
-            method: Method::Kernel3d,
+        let method = Method::Kernel3d {
+            subframes: Subframes::Planned { tolerance_px: 1.0 },
             visibility,
-            ..Settings::default()
         };
-        assert_thread_count_independent(&scene, &settings);
+        assert_thread_count_independent(&scene, &method);
     }
 }

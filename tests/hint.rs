@@ -8,19 +8,18 @@ use glam::DVec3;
 use std::path::Path;
 use std::sync::Arc;
 use streak::style::Style;
-use streak::{render, Framebuffer, Method, Plan, Render, Scene, Settings};
+use streak::{render, Framebuffer, Method, Render, Scene};
 
 fn style(text: &str) -> Arc<Style> {
     Arc::new(Style::parse(text, Path::new("test-style.toml")).unwrap())
 }
 
 fn hint(scene: &Scene, style: &Arc<Style>) -> Render {
-    let settings = Settings {
-        method: Method::Hint,
-        style: Some(Arc::clone(style)),
-        ..Settings::default()
+    let method = Method::Hint {
+        style: Arc::clone(style),
+        tolerance_px: 1.0,
     };
-    render(scene, &Plan::new(scene, 1.0), &settings, None)
+    render(scene, &method, None).unwrap()
 }
 
 /// The brightness of pixel (x, y).
@@ -103,10 +102,10 @@ fn zero_motion_gives_no_trail_and_the_static_image() {
         camera,
         vec![object(square, motion(&[(0.0, pose(DVec3::ZERO, 0.0))]))],
     );
-    let sharp = streak::render::render_static(&still, 1.0).image;
+    let sharp = sharp(&still, 1.0).image;
     for preset in ["", "[trail]\nblend = \"add\"\ncopies = 4\nduty = 0.5"] {
         let out = hint(&still, &style(preset));
-        assert_eq!(out.stats.hint.trail_splats, 0);
+        assert_eq!(out.stats.hint().unwrap().trail_splats, 0);
         // Only the object layer's opacity arithmetic (1 − (1 − T)) may differ, in the last bit.
         assert!(rmse(&out.image, &sharp) < 1e-6);
     }
@@ -127,7 +126,7 @@ fn a_full_trail_alone_is_the_blur() {
         sliding_square(6.0),
         scene(camera, vec![object(rod, spinning)]),
     ] {
-        let blur = draw(&scene, Method::Blur, 1.0, 1);
+        let blur = draw(&scene, &Method::BLUR);
         let trail = hint(&scene, &trail_only).image;
         assert!(rmse(&trail, &blur) < 1e-5, "{}", rmse(&trail, &blur));
     }
@@ -183,13 +182,13 @@ fn back_facing_points_emit_no_trail() {
     let count = away.len();
     let scene = scene(camera, vec![object(away, sliding)]);
     let out = hint(&scene, &style(""));
-    assert_eq!(out.stats.hint.back_facing, count);
-    assert_eq!(out.stats.hint.trail_splats, 0);
+    assert_eq!(out.stats.hint().unwrap().back_facing, count);
+    assert_eq!(out.stats.hint().unwrap().trail_splats, 0);
     assert!(out.image.pixels.iter().all(|p| *p == [0.0; 3]));
     // Asked for trails from every point, they are still left out while facing away.
     let all = hint(&scene, &style("[trail]\nemitters = \"all\""));
-    assert_eq!(all.stats.hint.trail_splats, 0);
-    let culled = all.stats.hint.trail_culled.back_facing;
+    assert_eq!(all.stats.hint().unwrap().trail_splats, 0);
+    let culled = all.stats.hint().unwrap().trail_culled.back_facing;
     assert!(culled >= count && culled.is_multiple_of(count), "{culled}");
 }
 
@@ -210,11 +209,11 @@ fn points_hidden_at_the_flash_emit_no_trail() {
     // Below the wall, on the square's path (2.5 units down, under the wall's edge at ≈ 1.1).
     let below = (80.0 + 2.5 * scale) as usize;
     let visible = hint(&scene, &style(""));
-    assert_eq!(visible.stats.hint.hidden, count);
-    assert_eq!(visible.stats.hint.trail_splats, 0);
+    assert_eq!(visible.stats.hint().unwrap().hidden, count);
+    assert_eq!(visible.stats.hint().unwrap().trail_splats, 0);
     assert!(value(&visible.image, 60, below) < 1e-6);
     let facing = hint(&scene, &style("[trail]\nemitters = \"front-facing\""));
-    assert_eq!(facing.stats.hint.hidden, 0);
+    assert_eq!(facing.stats.hint().unwrap().hidden, 0);
     assert!(value(&facing.image, 60, below) > 0.2);
 }
 
@@ -228,7 +227,7 @@ fn speed_lines_trail_the_object_and_lie_under_it() {
         "background = [1, 1, 1]\n[trail]\ndraw = false\n[speed_lines]\ndraw = true\nselect = \"sample\"\ncount = 5\nspacing = 3\ncolour = [0, 0, 0]\nwidth = 2\ntaper = 1\nfade = 1",
     );
     let out = hint(&scene, &lines);
-    assert!((1..=5).contains(&out.stats.hint.speed_lines));
+    assert!((1..=5).contains(&out.stats.hint().unwrap().speed_lines));
     let scale = px_per_unit(&scene.camera);
     let end = 100.0 + 3.0 * scale;
     // Behind the square, along the path, some column is inked.
@@ -289,10 +288,7 @@ fn every_preset_parses_and_renders_a_small_frame() {
             .filter(|p| (0..3).any(|c| (p[c] - background[c]).abs() > 0.02))
             .count()
     };
-    let sphere = drawn(
-        &streak::render::render_static(&scene, 1.0).image,
-        scene.background,
-    );
+    let sphere = drawn(&sharp(&scene, 1.0).image, scene.background);
     for path in &presets {
         let style = Arc::new(Style::load(path).unwrap_or_else(|e| panic!("{e}")));
         assert!(
@@ -329,7 +325,7 @@ fn twelve_thousand_pixels_of_motion_stay_finite_and_faint() {
     );
     let out = hint(&scene, &look);
     assert!(out.image.pixels.iter().flatten().all(|c| c.is_finite()));
-    assert!(out.stats.hint.speed_lines >= 1);
+    assert!(out.stats.hint().unwrap().speed_lines >= 1);
     // Sharp at the flash: the square's middle is white.
     assert!((value(&out.image, 100, 40) - 1.0).abs() < 1e-3);
     // Behind it, on its row but clear of the lines' red, the trail's green is the share of the

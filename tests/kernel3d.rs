@@ -8,16 +8,20 @@ mod common;
 use common::*;
 use glam::DVec3;
 use streak::render::Visibility;
-use streak::{render, Framebuffer, Method, Plan, Scene, Settings};
+use streak::{Framebuffer, Method, Scene, Subframes};
 
 fn kernel3d(scene: &Scene, subframes: Option<usize>, visibility: Visibility) -> Framebuffer {
-    let settings = Settings {
-        method: Method::Kernel3d,
-        subframes,
-        visibility,
-        ..Settings::default()
+    let subframes = match subframes {
+        Some(n) => Subframes::Equal(n),
+        None => Subframes::Planned { tolerance_px: 1.0 },
     };
-    render(scene, &Plan::new(scene, 1.0), &settings, None).image
+    draw(
+        scene,
+        &Method::Kernel3d {
+            subframes,
+            visibility,
+        },
+    )
 }
 
 #[test]
@@ -30,7 +34,7 @@ fn one_kernel_of_linear_motion_is_the_exact_time_integral() {
     let error = relative_l1(&image, &exact);
     assert!(error < 0.02, "kernel3d vs exact: {error}");
     // Blur's single ellipse for the same streak is a third off (tests/blur.rs).
-    let blur = red(&draw(&scene, Method::Blur, 100.0, 1));
+    let blur = red(&draw(&scene, &Method::Blur { tolerance_px: 64.0 }));
     assert!(relative_l1(&blur, &exact) > 10.0 * error);
 }
 
@@ -54,13 +58,13 @@ fn a_keyframe_scale_draws_what_the_scaled_geometry_draws() {
     let built = scene(camera.clone(), vec![object(big, slide(1.0))]);
     let scaled = scene(camera, vec![object(small, slide(3.0))]);
     for method in [
-        Method::Static,
-        Method::Blur,
-        Method::Reference,
-        Method::Kernel3d,
+        Method::STATIC,
+        Method::BLUR,
+        Method::Reference { samples: 16 },
+        Method::KERNEL3D,
     ] {
-        let a = draw(&built, method, 1.0, 16);
-        let b = draw(&scaled, method, 1.0, 16);
+        let a = draw(&built, &method);
+        let b = draw(&scaled, &method);
         // The two samplings of the square differ in where their surfels sit: within 1 % RMSE.
         assert!(rmse(&a, &b) < 0.01, "{method:?}: {}", rmse(&a, &b));
     }
@@ -77,7 +81,7 @@ fn sub_frames_converge_on_an_arc() {
     ]);
     let rod = patch(DVec3::new(1.2, 0.0, 0.0), [2.4, 0.15], 0.03, false);
     let scene = scene(camera, vec![object(rod, spinning)]);
-    let reference = draw(&scene, Method::Reference, 1.0, 1024);
+    let reference = draw(&scene, &Method::Reference { samples: 1024 });
     let errors: Vec<f64> = [1, 2, 4, 8]
         .iter()
         .map(|&n| rmse(&kernel3d(&scene, Some(n), Visibility::Exact), &reference))
@@ -109,7 +113,7 @@ fn exact_visibility_shows_the_background_between_two_brief_passes() {
     );
     scene.background = [0.0, 0.0, 1.0];
     let centre = |image: &Framebuffer| image.pixels[32 * 96 + 48];
-    let reference = centre(&draw(&scene, Method::Reference, 1.0, 1024));
+    let reference = centre(&draw(&scene, &Method::Reference { samples: 1024 }));
     let exact = centre(&kernel3d(&scene, Some(1), Visibility::Exact));
     let approximate = centre(&kernel3d(&scene, Some(1), Visibility::Approximate));
     // Each white square covers the pixel while its half-width 0.2 passes, 0.2/3 of the exposure:

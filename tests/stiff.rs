@@ -11,16 +11,15 @@ use streak::geometry::Surfel;
 use streak::motion::Pose;
 use streak::plan::{ObjectMotion, MAX_SEGMENTS_PER_INTERVAL};
 use streak::raster::{PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
-use streak::render::render_static;
-use streak::{render, Framebuffer, Method, Plan, Render, Scene, Settings};
+use streak::{Framebuffer, Method, Plan, Render, Scene};
 
 /// Every splat renderer; each case runs all of them.
-const METHODS: &[Method] = &[
-    Method::Static,
-    Method::Blur,
-    Method::Reference,
-    Method::Hint,
-    Method::Kernel3d,
+const METHODS: &[Kind] = &[
+    Kind::Static,
+    Kind::Blur,
+    Kind::Reference,
+    Kind::Hint,
+    Kind::Kernel3d,
 ];
 
 /// Frames of the reference in [`METHODS`]: few, as a user in a hurry would ask for. A power of
@@ -31,9 +30,6 @@ const SAMPLES: usize = 32;
 /// Frames of the converged reference that the other methods are compared to.
 const CONVERGED: usize = 512;
 
-/// Sub-segment tolerance of every render, px (the command line's default).
-const TOLERANCE_PX: f64 = 1.0;
-
 /// Least coverage of a pixel well inside a dense, still surface. Where pixel centres lie just
 /// beyond the 3σ cut-off of some of its footprints, each of those loses the exp(−9/2) of its peak
 /// that the truncation gain gives back elsewhere: measured 1 % along the centre lines of a square
@@ -43,8 +39,8 @@ const DENSE_COVERAGE: f64 = 0.985;
 
 /// How many times the energy of a faint moving splat appears in `method`'s picture: `hint` draws
 /// it sharp at the flash and again in the trail under it; the others once.
-fn exposures(method: Method) -> f64 {
-    if method == Method::Hint {
+fn exposures(method: Kind) -> f64 {
+    if method == Kind::Hint {
         2.0
     } else {
         1.0
@@ -59,8 +55,8 @@ fn exposures(method: Method) -> f64 {
 /// σ = 0.36 px splats sliding 2.4 px, the case tested here (11 % sliding 10 px); coarse surfels,
 /// whose splats are wider than their chord, spread their weight over the whole sub-segment and do
 /// not leak. `hint` draws its trail with the same ellipses. No other method may leak.
-fn sliding_leak(method: Method) -> f64 {
-    if matches!(method, Method::Blur | Method::Hint) {
+fn sliding_leak(method: Kind) -> f64 {
+    if matches!(method, Kind::Blur | Kind::Hint) {
         0.1
     } else {
         0.0
@@ -73,8 +69,8 @@ fn sliding_leak(method: Method) -> f64 {
 /// (blur.rs, `TIME_BINS`): the background leaks through. `hint` draws its trail with the same
 /// ellipses. Measured: 16 % at the centre of a square approaching the camera, 27 % where a square
 /// flies through the near plane. No other method may leak.
-fn depth_motion_leak(method: Method) -> f64 {
-    if matches!(method, Method::Blur | Method::Hint) {
+fn depth_motion_leak(method: Kind) -> f64 {
+    if matches!(method, Kind::Blur | Kind::Hint) {
         0.3
     } else {
         0.0
@@ -86,10 +82,10 @@ fn depth_motion_leak(method: Method) -> f64 {
 /// is a soft-edged surface: measured 8e-5 and 1.5e-3. Blur's ellipses are Gaussians standing for
 /// flat-topped streaks (τ = 1 px allows sub-segments of 32 px), which is Guan & Mueller's
 /// approximation: measured 0.013 and 0.08, at the streak's ends; hint's trail is the same.
-fn sliding_error(method: Method) -> [f64; 2] {
+fn sliding_error(method: Kind) -> [f64; 2] {
     match method {
-        Method::Static => [0.0, 0.0],
-        Method::Reference => [1e-3, 5e-3],
+        Kind::Static => [0.0, 0.0],
+        Kind::Reference => [1e-3, 5e-3],
         _ => [0.015, 0.1],
     }
 }
@@ -97,7 +93,7 @@ fn sliding_error(method: Method) -> [f64; 2] {
 /// Most footprints `method` may make for `plan` with `samples` reference frames: one per surfel
 /// for an instant (static, each reference frame), one per surfel and sub-segment for a motion
 /// renderer, and the hint's sharp object on top of its trail.
-fn footprint_bound(method: Method, plan: &Plan, samples: usize) -> usize {
+fn footprint_bound(method: Kind, plan: &Plan, samples: usize) -> usize {
     let surfels: usize = plan.objects.iter().map(|o| o.surfels).sum();
     let pieces: usize = plan
         .objects
@@ -108,24 +104,19 @@ fn footprint_bound(method: Method, plan: &Plan, samples: usize) -> usize {
         })
         .sum();
     match method {
-        Method::Static => surfels,
-        Method::Reference => surfels * samples,
-        Method::Hint => surfels + pieces,
+        Kind::Static => surfels,
+        Kind::Reference => surfels * samples,
+        Kind::Hint => surfels + pieces,
         _ => pieces,
     }
 }
 
 /// Render with `samples` reference frames, asserting what every case asks of every method: no
 /// NaN or infinity in any pixel, and no more footprints than [`footprint_bound`].
-fn run_with(scene: &Scene, method: Method, samples: usize) -> Render {
-    let plan = Plan::new(scene, TOLERANCE_PX);
-    let settings = Settings {
-        method,
-        samples,
-        ..Settings::default()
-    };
-    let out = render(scene, &plan, &settings, None);
-    let name = method.name();
+fn run_with(scene: &Scene, method: Kind, samples: usize) -> Render {
+    let plan = Plan::new(scene, &method.method(samples)).unwrap();
+    let out = plan.render(None);
+    let name = plan.method().name();
     assert!(
         out.image.pixels.iter().flatten().all(|c| c.is_finite()),
         "{name}: a pixel is not finite"
@@ -139,13 +130,13 @@ fn run_with(scene: &Scene, method: Method, samples: usize) -> Render {
     out
 }
 
-fn run(scene: &Scene, method: Method) -> Render {
+fn run(scene: &Scene, method: Kind) -> Render {
     run_with(scene, method, SAMPLES)
 }
 
 /// The shutter average that the methods which average time approach.
 fn converged(scene: &Scene) -> Framebuffer {
-    run_with(scene, Method::Reference, CONVERGED).image
+    run_with(scene, Kind::Reference, CONVERGED).image
 }
 
 /// What `method` should draw of white surfels on black (where a pixel's value is its coverage),
@@ -153,11 +144,11 @@ fn converged(scene: &Scene) -> Framebuffer {
 /// sharp frame at the flash (the end of the exposure) over the default trail, which spans the
 /// whole exposure and so is the average, but starts only from points in front of the camera at
 /// the flash; every other method the average.
-fn expected(method: Method, scene: &Scene, average: &Framebuffer) -> Vec<f64> {
+fn expected(method: Kind, scene: &Scene, average: &Framebuffer) -> Vec<f64> {
     match method {
-        Method::Static => red(&render_static(scene, scene.shutter.middle()).image),
-        Method::Hint => {
-            let flash = render_static(scene, scene.shutter.close);
+        Kind::Static => red(&sharp(scene, scene.shutter.middle()).image),
+        Kind::Hint => {
+            let flash = sharp(scene, scene.shutter.close);
             let behind = flash.stats.culled.behind_near;
             assert!(
                 behind == 0 || behind == scene.surfel_count(),
@@ -266,11 +257,13 @@ fn zero_motion_draws_the_static_image() {
         (0..20).map(|i| facing_surfel(DVec3::new(-2.0 + 0.2 * f64::from(i), 1.8, 0.3), 0.06)),
     );
     let still_scene = scene(camera.clone(), vec![object(surfels.clone(), still())]);
-    let sharp = red(&render_static(&still_scene, 0.5).image);
+    let sharp = red(&sharp(&still_scene, 0.5).image);
     // Keyframes 1e-9 units apart: the plan sees motion, so every motion path runs.
     let barely = linear(DVec3::ZERO, DVec3::new(1e-9, 0.0, 0.0));
     let barely_scene = scene(camera, vec![object(surfels, barely)]);
-    assert!(Plan::new(&barely_scene, TOLERANCE_PX).any_moving());
+    assert!(Plan::new(&barely_scene, &Method::BLUR)
+        .unwrap()
+        .any_moving());
     for &method in METHODS {
         let name = method.name();
         // 1e-5: far below one 8-bit step. Only f32 rounding may differ: the reference's weighted
@@ -297,8 +290,8 @@ fn motion_along_the_view_ray_grows_the_image_about_a_fixed_centre() {
     let camera = camera(96, 96);
     let approaching = linear(DVec3::ZERO, DVec3::new(0.0, 0.0, 5.0));
     let scene = scene(camera, vec![object(square(1.0, 0.04, 0.0), approaching)]);
-    let start = energy(&render_static(&scene, 0.0).image);
-    let end = energy(&render_static(&scene, 1.0).image);
+    let start = energy(&sharp(&scene, 0.0).image);
+    let end = energy(&sharp(&scene, 1.0).image);
     assert!((end / start - 4.0).abs() < 0.01, "{start} {end}");
     // Area ∝ 1/d(t)² with d = 10 − 5t: over a box shutter its mean is twice the start area
     // (100 ∫₀¹ dt/(10 − 5t)² = 2), and at mid-exposure (d = 7.5) it is (10/7.5)² times it.
@@ -306,10 +299,10 @@ fn motion_along_the_view_ray_grows_the_image_about_a_fixed_centre() {
     let mean = energy(&average) / start;
     // 0.5 %: 512 frames sum to the integral to 1e-5; what is left is the pixel sampling of each.
     assert!((mean - 2.0).abs() < 0.01, "{mean}");
-    let expected_area = |method: Method| match method {
-        Method::Static => (10.0f64 / 7.5).powi(2),
+    let expected_area = |method: Kind| match method {
+        Kind::Static => (10.0f64 / 7.5).powi(2),
         // The sharp square at the flash covers its whole trail, but for a soft edge.
-        Method::Hint => 4.0,
+        Kind::Hint => 4.0,
         _ => 2.0,
     };
     let half_start_px = 0.5 * px_per_unit(&scene.camera);
@@ -358,11 +351,11 @@ fn crossing_splat(width: u32, travel_px: f64) -> Scene {
 #[test]
 fn ten_thousand_pixels_of_motion_and_more_keep_the_share_of_energy_inside_the_image() {
     let width = 400;
-    let whole = energy(&render_static(&crossing_splat(width, 0.0), 0.5).image);
+    let whole = energy(&sharp(&crossing_splat(width, 0.0), 0.5).image);
     let sigma_px = (4.0 + PREFILTER_VARIANCE_PX2).sqrt();
     for travel_px in [1.2e4, 1.2e6] {
         let scene = crossing_splat(width, travel_px);
-        let plan = Plan::new(&scene, TOLERANCE_PX);
+        let plan = Plan::new(&scene, &Method::BLUR).unwrap();
         let ObjectMotion::Moving {
             segments, capped, ..
         } = &plan.objects[0].motion
@@ -392,8 +385,8 @@ fn ten_thousand_pixels_of_motion_and_more_keep_the_share_of_energy_inside_the_im
             let name = method.name();
             let expected_share = match method {
                 // At mid-exposure the splat is at the image centre.
-                Method::Static => 1.0,
-                Method::Reference => copies_share,
+                Kind::Static => 1.0,
+                Kind::Reference => copies_share,
                 // The sharp splat at the flash is off screen; its trail is the blur.
                 _ => path_share,
             };
@@ -443,7 +436,7 @@ fn edge_on_splats_draw_nothing_and_a_hair_off_edge_on_almost_nothing() {
     let tilt = 1e-6f64;
     let grazing = scene(camera.clone(), vec![object(edge_on_square(tilt), slide())]);
     let facing = scene(camera, vec![object(square(1.0, 0.04, 0.0), slide())]);
-    let facing_area = energy(&render_static(&facing, 0.5).image);
+    let facing_area = energy(&sharp(&facing, 0.5).image);
     for &method in METHODS {
         let name = method.name();
         let out = run(&edge_on, method);
@@ -637,7 +630,7 @@ fn surfels_crossing_the_near_plane_draw_the_part_in_front() {
         // A path through the near plane never holds the tolerance: the plan cuts it to the cap,
         // so that the motion renderers, which drop a piece with an end behind the near plane,
         // drop only the 1/256 of the exposure around the crossing.
-        let plan = Plan::new(&scene, TOLERANCE_PX);
+        let plan = Plan::new(&scene, &Method::BLUR).unwrap();
         let ObjectMotion::Moving {
             segments, capped, ..
         } = &plan.objects[0].motion
@@ -661,7 +654,7 @@ fn surfels_crossing_the_near_plane_draw_the_part_in_front() {
             // One reference frame more or less of a square that covers the whole image moves
             // every pixel by 1/SAMPLES; other methods answer to the same average, 2 % for pixel
             // sampling, less what blur's depth groups leak.
-            let slack = if method == Method::Reference {
+            let slack = if method == Kind::Reference {
                 1.0 / SAMPLES as f64
             } else {
                 0.02
@@ -776,14 +769,14 @@ fn hundreds_of_surfaces_over_one_pixel() {
     let opaque = stack(LAYERS, [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], 1.0);
     let sparse = stack(LAYERS, [1.0; 3], [1.0; 3], 0.5);
     let surfels = opaque.surfel_count();
-    let plan = Plan::new(&opaque, TOLERANCE_PX);
+    let plan = Plan::new(&opaque, &Method::BLUR).unwrap();
     let ObjectMotion::Moving { segments, .. } = &plan.objects[0].motion else {
         panic!("the stack moves");
     };
     assert_eq!(segments.len(), 1);
     // One half-covering layer alone covers half of the image centre (±5 %: its surfels' sum
     // ripples between grid points, and the pixel samples it).
-    let one = red(&render_static(&stack(1, [1.0; 3], [1.0; 3], 0.5), 0.5).image);
+    let one = red(&sharp(&stack(1, [1.0; 3], [1.0; 3], 0.5), 0.5).image);
     assert!((at(&one, 64, 32, 32) - 0.5).abs() < 0.05);
     for &method in METHODS {
         let name = method.name();
@@ -823,7 +816,7 @@ fn empty_scenes_draw_exactly_the_background() {
         let mut scene = scene(camera.clone(), objects);
         scene.background = [0.2, 0.4, 0.6];
         // A path wholly behind the camera costs no sub-segments.
-        let plan = Plan::new(&scene, TOLERANCE_PX);
+        let plan = Plan::new(&scene, &Method::BLUR).unwrap();
         for o in &plan.objects {
             if let ObjectMotion::Moving { segments, .. } = &o.motion {
                 assert_eq!(segments.len(), 1);

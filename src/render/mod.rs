@@ -1,5 +1,5 @@
-//! The splat renderers. All of them share projection ([`crate::project`]) and rasterization
-//! ([`crate::raster`]); they differ only in which footprints they make:
+//! The splat renderers. All of them share projection and rasterization; they differ only in which
+//! footprints they make (docs/architecture.md):
 //!
 //! - [`Method::Static`]: EWA surface splatting at one instant;
 //! - [`Method::Reference`]: the shutter-weighted average of N static frames (the accumulation
@@ -14,47 +14,20 @@ mod blur;
 mod hint;
 mod kernel3d;
 mod reference;
+mod still;
 
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility};
+pub use reference::ReferenceStats;
 
+use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
-use crate::plan::Plan;
-use crate::project::{object_footprints_at, Culled};
+use crate::plan::{Plan, TOLERANCE_RANGE_PX};
+use crate::project::Culled;
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, Target, TimeBins};
 use crate::scene::Scene;
 use crate::style::Style;
-use indicatif::ProgressBar;
 use std::sync::Arc;
-
-/// A rendering method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Method {
-    /// Sharp EWA splatting at one instant.
-    Static,
-    /// Motion ellipses from summed covariances, one pass.
-    Blur,
-    /// Average of N static frames at stratified shutter times.
-    Reference,
-    /// The object sharp at the flash over a styled trail (a motion hint).
-    Hint,
-    /// 3D spatio-temporal kernels integrated along pixel rays, with an A-buffer.
-    Kernel3d,
-}
-
-impl Method {
-    /// The name used on the command line and in reports.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Static => "static",
-            Method::Blur => "blur",
-            Method::Reference => "reference",
-            Method::Hint => "hint",
-            Method::Kernel3d => "kernel3d",
-        }
-    }
-}
 
 /// Most frames the reference may average (and the study may ask for).
 pub const MAX_SAMPLES: usize = 1 << 16;
@@ -62,37 +35,149 @@ pub const MAX_SAMPLES: usize = 1 << 16;
 /// Most sub-frames `kernel3d` may cut the exposure into.
 pub const MAX_SUBFRAMES: usize = 1024;
 
-/// What to render and at which quality.
+/// The sub-segment tolerance a method uses unless told otherwise, px.
+pub const DEFAULT_TOLERANCE_PX: f64 = 1.0;
+
+/// A rendering method with its own settings. [`Plan::new`] checks the values.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Settings {
-    /// The renderer.
-    pub method: Method,
-    /// Instant drawn by `static` (default: the middle of the exposure).
-    pub time: Option<f64>,
-    /// Frames averaged by `reference`.
-    pub samples: usize,
-    /// The look of `hint` (default: [`Style::default`]).
-    pub style: Option<Arc<Style>>,
-    /// Equal sub-frames of `kernel3d` (default: the plan's sub-segments).
-    pub subframes: Option<usize>,
-    /// How `kernel3d` resolves visibility.
-    pub visibility: Visibility,
+pub enum Method {
+    /// Sharp EWA splatting at one instant.
+    Static {
+        /// Normalized frame time in [0, 1] (`None`: the middle of the exposure).
+        time: Option<f64>,
+    },
+    /// The average of `samples` static frames at stratified shutter times, each weighted by the
+    /// shutter's mass in its stratum.
+    Reference {
+        /// Frames averaged, 1 to [`MAX_SAMPLES`].
+        samples: usize,
+    },
+    /// Motion ellipses from summed covariances, one pass.
+    Blur {
+        /// Largest distance of a curved screen path from its linear sub-segments, px (within
+        /// [`TOLERANCE_RANGE_PX`]).
+        tolerance_px: f64,
+    },
+    /// The object sharp at the flash over a styled trail (a motion hint).
+    Hint {
+        /// The look.
+        style: Arc<Style>,
+        /// Largest distance of a curved trail from its linear sub-segments, px.
+        tolerance_px: f64,
+    },
+    /// 3D spatio-temporal kernels integrated along pixel rays.
+    Kernel3d {
+        /// How the exposure is cut into sub-frames.
+        subframes: Subframes,
+        /// How fragments are resolved.
+        visibility: Visibility,
+    },
 }
 
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            method: Method::Blur,
-            time: None,
-            samples: 64,
-            style: None,
-            subframes: None,
-            visibility: Visibility::Exact,
+/// How `kernel3d` cuts the exposure into sub-frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Subframes {
+    /// At the ends of every moving object's linear sub-segments, planned to `tolerance_px`.
+    Planned {
+        /// Largest distance of a curved screen path from its sub-segments, px.
+        tolerance_px: f64,
+    },
+    /// This many equal sub-frames, 1 to [`MAX_SUBFRAMES`].
+    Equal(usize),
+}
+
+impl Method {
+    /// `blur` at the default tolerance.
+    pub const BLUR: Method = Method::Blur {
+        tolerance_px: DEFAULT_TOLERANCE_PX,
+    };
+
+    /// `static` at the middle of the exposure.
+    pub const STATIC: Method = Method::Static { time: None };
+
+    /// `kernel3d` with the A-buffer at the plan's sub-frames.
+    pub const KERNEL3D: Method = Method::Kernel3d {
+        subframes: Subframes::Planned {
+            tolerance_px: DEFAULT_TOLERANCE_PX,
+        },
+        visibility: Visibility::Exact,
+    };
+
+    /// `hint` in `style` at the default tolerance.
+    #[must_use]
+    pub fn hint(style: Style) -> Method {
+        Method::Hint {
+            style: Arc::new(style),
+            tolerance_px: DEFAULT_TOLERANCE_PX,
+        }
+    }
+
+    /// The name used on the command line and in reports.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Static { .. } => "static",
+            Method::Blur { .. } => "blur",
+            Method::Reference { .. } => "reference",
+            Method::Hint { .. } => "hint",
+            Method::Kernel3d { .. } => "kernel3d",
+        }
+    }
+
+    /// The tolerance the plan cuts curved paths to: the method's own, or the default for the
+    /// methods that draw instants (the plan then only tells still objects from moving ones).
+    #[must_use]
+    pub fn tolerance_px(&self) -> f64 {
+        match *self {
+            Method::Blur { tolerance_px }
+            | Method::Hint { tolerance_px, .. }
+            | Method::Kernel3d {
+                subframes: Subframes::Planned { tolerance_px },
+                ..
+            } => tolerance_px,
+            Method::Static { .. }
+            | Method::Reference { .. }
+            | Method::Kernel3d {
+                subframes: Subframes::Equal(_),
+                ..
+            } => DEFAULT_TOLERANCE_PX,
+        }
+    }
+
+    /// Check every setting; an error names the setting (as the command line spells it) and the
+    /// range that would be right. Nothing is clamped.
+    pub fn check(&self) -> Result<()> {
+        let invalid = |field: &str, message: String| Err(Error::invalid(field, message));
+        match *self {
+            Method::Static { time: Some(t) } if !(0.0..=1.0).contains(&t) => {
+                invalid("time", format!("{t}: frame time is normalized to [0, 1]"))
+            }
+            Method::Reference { samples } if !(1..=MAX_SAMPLES).contains(&samples) => invalid(
+                "samples",
+                format!("{samples}: average between 1 and {MAX_SAMPLES} frames"),
+            ),
+            Method::Kernel3d {
+                subframes: Subframes::Equal(n),
+                ..
+            } if !(1..=MAX_SUBFRAMES).contains(&n) => invalid(
+                "subframes",
+                format!("{n}: use between 1 and {MAX_SUBFRAMES} sub-frames"),
+            ),
+            _ if !TOLERANCE_RANGE_PX.contains(&self.tolerance_px()) => invalid(
+                "tolerance",
+                format!(
+                    "{}: must be between {} and {} pixels",
+                    self.tolerance_px(),
+                    TOLERANCE_RANGE_PX.start(),
+                    TOLERANCE_RANGE_PX.end()
+                ),
+            ),
+            _ => Ok(()),
         }
     }
 }
 
-/// What a render did, for `--explain` and the study.
+/// What a render did, for `--explain` and the study: the counts every method shares, and its own.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
     /// Surfels (or surfel sub-segments) left out, by reason.
@@ -101,16 +186,40 @@ pub struct Stats {
     pub footprints: usize,
     /// Frames rasterized (1 except for the reference).
     pub frames: usize,
-    /// Footprints of still objects reused across reference frames instead of projected again.
-    pub reused_footprints: usize,
     /// The largest per-tile footprint list seen.
     pub max_per_tile: usize,
     /// The most footprint–tile pairs binned for one frame (4 bytes each).
     pub tile_entries: usize,
-    /// What `hint` left out and drew.
-    pub hint: HintStats,
-    /// What `kernel3d` made and held.
-    pub kernel3d: KernelStats,
+    /// What the method did beyond the shared counts.
+    pub method: MethodStats,
+}
+
+/// What one method did beyond the shared counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MethodStats {
+    /// Nothing beyond them (`static` and `blur`).
+    #[default]
+    Shared,
+    /// `reference`.
+    Reference(ReferenceStats),
+    /// `hint`.
+    Hint(HintStats),
+    /// `kernel3d`.
+    Kernel3d(KernelStats),
+}
+
+impl MethodStats {
+    /// Human-readable account for `--explain` (empty when there is nothing beyond the shared
+    /// counts).
+    #[must_use]
+    pub fn explain(&self) -> String {
+        match self {
+            MethodStats::Shared => String::new(),
+            MethodStats::Reference(s) => s.explain(),
+            MethodStats::Hint(s) => s.explain(),
+            MethodStats::Kernel3d(s) => s.explain(),
+        }
+    }
 }
 
 impl Stats {
@@ -119,6 +228,24 @@ impl Stats {
         self.frames += 1;
         self.max_per_tile = self.max_per_tile.max(raster.max_per_tile);
         self.tile_entries = self.tile_entries.max(raster.tile_entries);
+    }
+
+    /// What `hint` did, if it was a hint.
+    #[must_use]
+    pub fn hint(&self) -> Option<&HintStats> {
+        match &self.method {
+            MethodStats::Hint(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// What `kernel3d` did, if it was `kernel3d`.
+    #[must_use]
+    pub fn kernel3d(&self) -> Option<&KernelStats> {
+        match &self.method {
+            MethodStats::Kernel3d(s) => Some(s),
+            _ => None,
+        }
     }
 }
 
@@ -131,61 +258,46 @@ pub struct Render {
     pub stats: Stats,
 }
 
-/// Render `scene` as `plan` and `settings` say. `progress`, when given, advances once per frame.
-#[must_use]
-pub fn render(
-    scene: &Scene,
-    plan: &Plan,
-    settings: &Settings,
-    progress: Option<&ProgressBar>,
-) -> Render {
-    match settings.method {
-        Method::Static => render_static(
-            scene,
-            settings.time.unwrap_or_else(|| scene.shutter.middle()),
-        ),
-        Method::Reference => reference::render(
-            scene,
-            plan,
-            settings.samples.clamp(1, MAX_SAMPLES),
-            progress,
-        ),
-        Method::Blur => blur::render(scene, plan),
-        Method::Hint => match &settings.style {
-            Some(style) => hint::render(scene, plan, style),
-            None => hint::render(scene, plan, &Style::default()),
-        },
-        Method::Kernel3d => kernel3d::render(
-            scene,
-            plan,
-            settings.subframes.map(|n| n.clamp(1, MAX_SUBFRAMES)),
-            settings.visibility,
-        ),
-    }
+/// Told after each frame a render finishes (the reference draws many; the others one).
+pub type Progress<'a> = &'a dyn Fn();
+
+/// Plan `scene` for `method` and render it. `progress`, when given, is called once per frame.
+///
+/// # Errors
+/// A setting of `method` out of its range ([`Method::check`]).
+pub fn render(scene: &Scene, method: &Method, progress: Option<Progress>) -> Result<Render> {
+    Ok(Plan::new(scene, method)?.render(progress))
 }
 
-/// EWA surface splatting of the whole scene at time `t`.
-#[must_use]
-pub fn render_static(scene: &Scene, t: f64) -> Render {
-    let mut stats = Stats::default();
-    let image = instant_layer(scene, t, &mut stats).over_colour(scene.background);
-    Render { image, stats }
+/// Render as `plan` says, with the method it was made for.
+pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render {
+    let scene = plan.scene();
+    let render = match plan.method() {
+        Method::Static { time } => {
+            still::render(scene, time.unwrap_or_else(|| scene.shutter.middle()))
+        }
+        Method::Reference { samples } => reference::render(scene, plan, *samples, progress),
+        Method::Blur { .. } => blur::render(scene, plan),
+        Method::Hint { style, .. } => hint::render(scene, plan, style),
+        Method::Kernel3d {
+            subframes,
+            visibility,
+        } => kernel3d::render(scene, plan, *subframes, *visibility),
+    };
+    if let (Some(progress), false) = (progress, matches!(plan.method(), Method::Reference { .. })) {
+        progress();
+    }
+    render
 }
 
 /// The whole scene splatted at time `t`, as a layer, counting into `stats`.
 fn instant_layer(scene: &Scene, t: f64, stats: &mut Stats) -> Layer {
-    let mut footprints = Vec::new();
-    for object in &scene.objects {
-        object_footprints_at(
-            &scene.camera,
-            &scene.lighting,
-            object,
-            t,
-            &mut footprints,
-            &mut stats.culled,
-        );
-    }
-    rasterize_counted(scene, &footprints, &TimeBins::INSTANT, stats)
+    rasterize_counted(
+        scene,
+        &still::footprints_at(scene, t, &mut stats.culled),
+        &TimeBins::INSTANT,
+        stats,
+    )
 }
 
 /// Rasterize footprints with the scene's size and background in time bins `bins`, counting into

@@ -4,19 +4,36 @@
 //! converges as N grows. Still objects are projected once and their footprints reused by every
 //! frame: the plan says they cannot change.
 
-use super::{draw, Render, Stats};
+use super::{draw, MethodStats, Progress, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::object_footprints_at;
 use crate::raster::TimeBins;
 use crate::scene::Scene;
-use indicatif::ProgressBar;
+
+/// What the reference did beyond the shared counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReferenceStats {
+    /// Footprints of still objects reused across frames instead of projected again.
+    pub reused_footprints: usize,
+}
+
+impl ReferenceStats {
+    /// Human-readable account for `--explain`.
+    #[must_use]
+    pub fn explain(&self) -> String {
+        format!(
+            "reference: {} footprints of still objects reused across frames instead of projected again\n",
+            self.reused_footprints
+        )
+    }
+}
 
 pub(super) fn render(
     scene: &Scene,
     plan: &Plan,
     samples: usize,
-    progress: Option<&ProgressBar>,
+    progress: Option<Progress>,
 ) -> Render {
     let mut stats = Stats::default();
     let objects = || scene.objects.iter().zip(&plan.objects);
@@ -53,11 +70,13 @@ pub(super) fn render(
                 acc[c] += mass * f64::from(p[c]);
             }
         }
-        if let Some(bar) = progress {
-            bar.inc(1);
+        if let Some(progress) = progress {
+            progress();
         }
     }
-    stats.reused_footprints = still.len() * samples.saturating_sub(1);
+    stats.method = MethodStats::Reference(ReferenceStats {
+        reused_footprints: still.len() * samples.saturating_sub(1),
+    });
     let image = Framebuffer {
         width,
         height,

@@ -8,7 +8,7 @@ use streak::geometry::Surfel;
 use streak::motion::{Keyframe, Motion, Pose};
 use streak::scene::{Lighting, Object, Scene};
 use streak::shutter::Shutter;
-use streak::{render, Framebuffer, Method, Plan, Settings};
+use streak::{render, Framebuffer, Method, Render};
 
 /// Camera distance; the surfels sit in the plane z = 0, parallel to the image plane, where the
 /// projection is exactly a scale by `focal / DISTANCE`.
@@ -101,14 +101,41 @@ pub fn object(surfels: Vec<Surfel>, motion: Motion) -> Object {
     }
 }
 
-pub fn draw(scene: &Scene, method: Method, tolerance_px: f64, samples: usize) -> Framebuffer {
-    let plan = Plan::new(scene, tolerance_px);
-    let settings = Settings {
-        method,
-        samples,
-        ..Settings::default()
-    };
-    render(scene, &plan, &settings, None).image
+/// The scene drawn by `method`.
+pub fn draw(scene: &Scene, method: &Method) -> Framebuffer {
+    render(scene, method, None).unwrap().image
+}
+
+/// The scene drawn sharp at time `t`.
+pub fn sharp(scene: &Scene, t: f64) -> Render {
+    render(scene, &Method::Static { time: Some(t) }, None).unwrap()
+}
+
+/// The renderers by name, for the suites that run each case through every one of them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    Static,
+    Blur,
+    Reference,
+    Hint,
+    Kernel3d,
+}
+
+impl Kind {
+    /// The method with its defaults, and `samples` frames for the reference.
+    pub fn method(self, samples: usize) -> Method {
+        match self {
+            Kind::Static => Method::STATIC,
+            Kind::Blur => Method::BLUR,
+            Kind::Reference => Method::Reference { samples },
+            Kind::Hint => Method::hint(streak::style::Style::default()),
+            Kind::Kernel3d => Method::KERNEL3D,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        self.method(1).name()
+    }
 }
 
 /// Σ of the red channel: for white surfels on black, the area covered in px².
@@ -153,7 +180,7 @@ pub const UNIT_SPHERE_VIEW: &str = r#"
 /// coverage of any pixel centre more than 2 px inside its silhouette (radius f·tan(asin(1/4))),
 /// asserting that nothing shows more than 3 px outside it. White on black makes coverage the value.
 pub fn least_coverage_inside_unit_sphere(scene: &Scene) -> f32 {
-    let image = streak::render::render_static(scene, 0.0);
+    let image = sharp(scene, 0.0);
     let f = scene.camera.focal_px;
     let radius_px = f * (1.0f64 / 4.0).asin().tan();
     let (mut inside, mut worst) = (0, 1.0f32);

@@ -26,7 +26,7 @@
 mod speed_lines;
 
 use super::blur::{motion_ellipse, TIME_BINS};
-use super::{Render, Stats};
+use super::{MethodStats, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
@@ -122,6 +122,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
     let flash = shutter.open + style.object.flash * duration;
     let background = style.background.unwrap_or(scene.background);
     let mut stats = Stats::default();
+    let mut hint = HintStats::default();
 
     // The object layer at the flash, which also tells which points are visible.
     let mut stills = 0;
@@ -204,18 +205,18 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 match trail.emitters {
                     Emitters::All => true,
                     _ if !(view.facing > 0.0) => {
-                        stats.hint.back_facing += 1;
+                        hint.back_facing += 1;
                         false
                     }
                     Emitters::Visible if is_hidden(&view.splat, &object_layer) => {
-                        stats.hint.hidden += 1;
+                        hint.hidden += 1;
                         false
                     }
                     _ => true,
                 }
             })
             .collect();
-        stats.hint.emitting += emits.iter().filter(|&&e| e).count();
+        hint.emitting += emits.iter().filter(|&&e| e).count();
         let emits: Vec<bool> = emits
             .iter()
             .enumerate()
@@ -230,8 +231,8 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             };
             let (footprints, culled) =
                 object_trails(&context, object, segments, &copies, max_piece, &emits);
-            stats.hint.trail_splats += footprints.len();
-            stats.hint.trail_culled.add(&culled);
+            hint.trail_splats += footprints.len();
+            hint.trail_culled.add(&culled);
             trail_footprints.extend(footprints);
         }
         if style.speed_lines.draw && line_window[1] > line_window[0] {
@@ -262,7 +263,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             )
         })
         .collect();
-    stats.hint.speed_lines = lines.len();
+    hint.speed_lines = lines.len();
     let look = &style.speed_lines;
     let line_layer = speed_lines::draw(
         &lines,
@@ -306,6 +307,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             image = layer.over(&image);
         }
     }
+    stats.method = MethodStats::Hint(hint);
     Render { image, stats }
 }
 

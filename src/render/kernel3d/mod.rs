@@ -23,7 +23,7 @@ mod abuffer;
 mod integral;
 mod kernel;
 
-use super::{instant_layer, Render, Stats};
+use super::{instant_layer, MethodStats, Render, Stats, Subframes};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{Cull, Culled, Instant};
@@ -76,19 +76,22 @@ impl KernelStats {
     }
 }
 
-/// Render `scene` with kernels over `subframes` equal sub-frames (default: the plan's
-/// sub-segments of every moving object), resolving visibility as `visibility` says.
+/// Render `scene` with kernels over the sub-frames `subframes` says, resolving visibility as
+/// `visibility` says.
 pub(super) fn render(
     scene: &Scene,
     plan: &Plan,
-    subframes: Option<usize>,
+    subframes: Subframes,
     visibility: Visibility,
 ) -> Render {
     let camera = &scene.camera;
     let (width, height) = (camera.width, camera.height);
     let times = subframe_times(scene, plan, subframes);
     let mut stats = Stats::default();
-    stats.kernel3d.subframes = times.len() - 1;
+    let mut kernel3d = KernelStats {
+        subframes: times.len() - 1,
+        ..KernelStats::default()
+    };
     // Sub-frame windows on the shutter-mass axis.
     let mut windows = Vec::with_capacity(times.len() - 1);
     let mut mass = 0.0;
@@ -128,7 +131,7 @@ pub(super) fn render(
     });
     let off_screen = stats.culled.off_screen;
     let (tiles, bounds) = bin(scene, &kernels, &mut stats.culled);
-    stats.kernel3d.kernels = kernels.len() - (stats.culled.off_screen - off_screen);
+    kernel3d.kernels = kernels.len() - (stats.culled.off_screen - off_screen);
     let tiles_x = width.div_ceil(TILE_PX) as usize;
     let results: Vec<(Vec<Resolved>, usize, usize)> = tiles
         .par_iter()
@@ -156,7 +159,7 @@ pub(super) fn render(
     let bg = scene.background.map(f64::from);
     let mut pixels = vec![[0.0f32; 3]; width as usize * height as usize];
     for (tile, (resolved, count, peak_pixel)) in results.iter().enumerate() {
-        let k = &mut stats.kernel3d;
+        let k = &mut kernel3d;
         k.fragments += count;
         k.peak_fragments_per_pixel = k.peak_fragments_per_pixel.max(*peak_pixel);
         k.peak_fragments_per_tile = k.peak_fragments_per_tile.max(*count);
@@ -169,7 +172,8 @@ pub(super) fn render(
         }
     }
     stats.frames = 1;
-    stats.footprints = stats.kernel3d.kernels;
+    stats.footprints = kernel3d.kernels;
+    stats.method = MethodStats::Kernel3d(kernel3d);
     let image = Framebuffer {
         width,
         height,
@@ -178,18 +182,18 @@ pub(super) fn render(
     Render { image, stats }
 }
 
-/// Sub-frame boundaries over the exposure: `count` equal sub-frames, or the union of the plan's
+/// Sub-frame boundaries over the exposure: equal sub-frames, or the union of the plan's
 /// sub-segment ends of every moving object (one sub-frame when nothing moves).
-fn subframe_times(scene: &Scene, plan: &Plan, count: Option<usize>) -> Vec<f64> {
+fn subframe_times(scene: &Scene, plan: &Plan, subframes: Subframes) -> Vec<f64> {
     let (open, close) = (scene.shutter.open, scene.shutter.close);
-    let mut times = match count {
-        Some(n) => {
+    let mut times = match subframes {
+        Subframes::Equal(n) => {
             let n = n.max(1);
             (0..=n)
                 .map(|i| open + (close - open) * i as f64 / n as f64)
                 .collect()
         }
-        None => {
+        Subframes::Planned { .. } => {
             let mut times = vec![open, close];
             for object in &plan.objects {
                 if let ObjectMotion::Moving { segments, .. } = &object.motion {
