@@ -6,11 +6,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 use streak::gallery::{self, toml_files, GalleryOptions};
+use streak::io::image as output;
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
 use streak::render::{Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES, MAX_SUBFRAMES};
+use streak::scene::camera::check_image_size;
 use streak::study::{self, StudyOptions};
 use streak::style::Style;
-use streak::{output, Error, Method, Plan, Result, Scene};
+use streak::{Error, Method, Plan, Result, Scene};
 
 /// Motion blur and motion hints for point-based geometry.
 #[derive(Parser)]
@@ -176,9 +178,7 @@ pub fn run() -> Result<()> {
 fn load(path: &Path, image: &ImageArgs) -> Result<Scene> {
     let mut scene = Scene::load(path)?;
     if let (Some(w), Some(h)) = (image.width, image.height) {
-        streak::scene::check_image_size(w, h)
-            .map_err(|message| Error::Usage(format!("--width/--height {message}")))?;
-        scene.camera = scene.camera.resized(w, h);
+        scene.camera = scene.camera.resized(w, h).map_err(as_option)?;
     }
     Ok(scene)
 }
@@ -272,10 +272,13 @@ fn method_name(name: MethodName) -> &'static str {
     }
 }
 
-/// A method's setting error in the command line's words.
+/// A setting's error in the command line's words: the setting `width/height` is the options
+/// `--width/--height`, any other is `--` and its name.
 fn as_option(error: Error) -> Error {
     match error {
-        Error::Invalid { field, message } => Error::Usage(format!("--{field} {message}")),
+        Error::Invalid { field, message } => {
+            Error::Usage(format!("--{} {message}", field.replace('/', "/--")))
+        }
         other => other,
     }
 }
@@ -393,8 +396,7 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
         )));
     }
     if let (Some(w), Some(h)) = (args.image.width, args.image.height) {
-        streak::scene::check_image_size(w, h)
-            .map_err(|message| Error::Usage(format!("--width/--height {message}")))?;
+        check_image_size(w, h).map_err(as_option)?;
     }
     let mut style_files = Vec::new();
     for path in &args.styles {

@@ -10,8 +10,8 @@
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
+use crate::io::image::write_png;
 use crate::metrics::{compare, ImageError};
-use crate::output::write_png;
 use crate::plan::{ObjectMotion, Plan};
 use crate::render::{render, Method, DEFAULT_TOLERANCE_PX};
 use crate::scene::Scene;
@@ -101,7 +101,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
     for path in &options.scenes {
         let mut scene = Scene::load(path)?;
         if let Some((w, h)) = options.size {
-            scene.camera = scene.camera.resized(w, h);
+            scene.camera = scene.camera.resized(w, h)?;
         }
         let name = path
             .file_stem()

@@ -39,33 +39,30 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 #![warn(missing_docs)]
 
-pub mod camera;
 pub mod error;
 pub mod framebuffer;
 #[cfg(feature = "cli")]
 pub mod gallery;
-pub mod geometry;
-pub mod mesh;
+pub mod io;
+pub mod math;
 #[cfg(feature = "cli")]
 pub mod metrics;
-pub mod motion;
-pub mod output;
 pub mod plan;
 #[cfg(feature = "cli")]
 pub mod plot;
-pub mod pointcloud;
-pub mod project;
-pub mod raster;
+mod project;
+mod raster;
 pub mod render;
 pub mod scene;
-pub mod shutter;
 #[cfg(feature = "cli")]
 pub mod study;
 pub mod style;
-pub mod volume;
+pub mod surfels;
+
+pub use glam;
 
 pub use error::{Error, Result};
 pub use framebuffer::Framebuffer;
 pub use plan::Plan;
 pub use render::{render, Method, Render, Stats, Subframes};
-pub use scene::Scene;
+pub use scene::{Camera, Keyframe, Light, Lighting, Motion, Object, Pose, Scene, Shutter};

@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
-use crate::output::linear_to_srgb8;
+use crate::io::image::linear_to_srgb8;
 use rayon::prelude::*;
 
 /// Error of an image against a reference of the same size.
@@ -23,7 +23,7 @@ pub struct ImageError {
 ///
 /// - RMSE and PSNR are computed on the linear colour values as they are (not clamped), with a
 ///   peak of 1.0. PSNR of identical images is `f64::INFINITY`.
-/// - SSIM is computed on the luma of the sRGB-encoded 8-bit images (see [`crate::output::linear_to_srgb8`]):
+/// - SSIM is computed on the luma of the sRGB-encoded 8-bit images (see [`crate::io::image::linear_to_srgb8`]):
 ///   Wang et al. 2004, 11×11 Gaussian window with σ = 1.5, K1 = 0.01, K2 = 0.03, luma in [0, 1];
 ///   near the border the window is cut to the image and renormalised, so every pixel counts.
 /// - ꟻLIP is NVIDIA's LDR-ꟻLIP on the sRGB-encoded 8-bit images at the default

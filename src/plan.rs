@@ -12,10 +12,10 @@
 //! drop a piece with an end behind the near plane, and this narrows what they drop from the whole
 //! interval to the piece around the crossing.
 
-use crate::camera::Camera;
 use crate::error::Result;
 use crate::project::Culled;
 use crate::render::{render_planned, Method, Progress, Render};
+use crate::scene::camera::Camera;
 use crate::scene::{Object, Scene};
 use glam::DVec2;
 
@@ -96,7 +96,7 @@ impl<'a> Plan<'a> {
             .iter()
             .map(|object| ObjectPlan {
                 name: object.name.clone(),
-                surfels: object.surfels.len(),
+                surfels: object.surfels().len(),
                 motion: if object
                     .motion
                     .moves_within(scene.shutter.open, scene.shutter.close)
@@ -202,7 +202,7 @@ fn screen_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<D
         .motion
         .pose_at(t)
         .to_affine()
-        .transform_point3(object.surfels[probe].position);
+        .transform_point3(object.surfels()[probe].position);
     camera
         .project(camera.view.transform_point3(p))
         .map(|(px, _)| px)
@@ -269,8 +269,8 @@ fn plan_motion(
     close: f64,
     tolerance_px: f64,
 ) -> ObjectMotion {
-    let stride = object.surfels.len().div_ceil(PROBES).max(1);
-    let probes: Vec<usize> = (0..object.surfels.len()).step_by(stride).collect();
+    let stride = object.surfels().len().div_ceil(PROBES).max(1);
+    let probes: Vec<usize> = (0..object.surfels().len()).step_by(stride).collect();
     let mut breaks: Vec<f64> = vec![open];
     breaks.extend(object.motion.breaks_within(open, close));
     breaks.push(close);

@@ -7,14 +7,14 @@
 //! rasterizer: points behind the near plane are not projected, and the caller culls back faces
 //! and off-screen footprints, counting each in [`Culled`].
 
-use crate::camera::Camera;
-use crate::geometry::Surfel;
-use crate::motion::Pose;
+use crate::math::Sym2;
 use crate::raster::{
-    Footprint, Profile, Rejection, ScreenSplat, Sym2, TimeExtent, CUTOFF_SIGMAS,
-    PREFILTER_VARIANCE_PX2,
+    Footprint, Profile, Rejection, ScreenSplat, TimeExtent, CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2,
 };
+use crate::scene::camera::Camera;
+use crate::scene::motion::Pose;
 use crate::scene::{Lighting, Object};
+use crate::surfels::Surfel;
 use glam::{DAffine3, DMat3, DVec2, DVec3};
 use rayon::prelude::*;
 
@@ -230,7 +230,7 @@ pub fn object_footprints_at(
 ) {
     let instant = Instant::new(camera, &object.motion.pose_at(t));
     let results: Vec<_> = object
-        .surfels
+        .surfels()
         .par_iter()
         .map(|s| match view_surfel(camera, &instant, lighting, s) {
             Some(view) => static_footprint(camera, &view),
@@ -247,15 +247,17 @@ mod tests {
     use super::*;
 
     fn camera() -> Camera {
-        Camera::look_at(
+        Camera::new(
             DVec3::new(0.0, 0.0, 5.0),
             DVec3::ZERO,
             DVec3::Y,
             45.0,
             200,
             200,
-            0.01,
         )
+        .unwrap()
+        .with_near(0.01)
+        .unwrap()
     }
 
     fn surfel(normal: DVec3) -> Surfel {

@@ -8,8 +8,8 @@
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
+use crate::io::image::{read_exr, write_exr, write_png};
 use crate::metrics::compare;
-use crate::output::{read_exr, write_exr, write_png};
 use crate::plot::StudyPoint;
 use crate::render::{
     render, Method, Render, Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
@@ -129,18 +129,24 @@ pub fn converged_reference(
     cache_dir: &Path,
     progress: Option<&ProgressBar>,
 ) -> Result<Framebuffer> {
-    let text = std::fs::read_to_string(&scene.source).map_err(|e| Error::io(&scene.source, e))?;
-    let mut hasher = std::collections::hash_map::DefaultHasher::new();
-    (
-        text,
-        scene.camera.width,
-        scene.camera.height,
-        samples,
-        env!("CARGO_PKG_VERSION"),
-    )
-        .hash(&mut hasher);
-    let path = cache_dir.join(format!("reference-{samples}-{:016x}.exr", hasher.finish()));
-    if let Ok(image) = read_exr(&path) {
+    // The cache is keyed by the scene file's text; a scene built in code is not cached.
+    let cached = match &scene.source {
+        Some(source) => {
+            let text = std::fs::read_to_string(source).map_err(|e| Error::io(source, e))?;
+            let mut hasher = std::collections::hash_map::DefaultHasher::new();
+            (
+                text,
+                scene.camera.width,
+                scene.camera.height,
+                samples,
+                env!("CARGO_PKG_VERSION"),
+            )
+                .hash(&mut hasher);
+            Some(cache_dir.join(format!("reference-{samples}-{:016x}.exr", hasher.finish())))
+        }
+        None => None,
+    };
+    if let Some(image) = cached.as_deref().and_then(|path| read_exr(path).ok()) {
         if (image.width, image.height) == (scene.camera.width, scene.camera.height) {
             return Ok(image);
         }
@@ -151,7 +157,9 @@ pub fn converged_reference(
         }
     };
     let image = render(scene, &Method::Reference { samples }, Some(&tick))?.image;
-    write_exr(&image, &path)?;
+    if let Some(path) = &cached {
+        write_exr(&image, path)?;
+    }
     Ok(image)
 }
 

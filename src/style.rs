@@ -1,16 +1,17 @@
 //! Style presets for motion hints: everything that makes a hint look the way it does.
 //!
-//! A style is a TOML file (the presets live in `styles/`; every field is documented in the
-//! README). Parsing mirrors scene files: serde reads a `*Spec` that rejects unknown keys, then
-//! validation checks each value and names the field of any mistake. Every field has a default,
-//! so an empty file is the default style: the object sharp at shutter close over an
-//! alpha-blended trail of its own colours (Guan & Mueller §3.1, the flash-and-trail photograph).
+//! A style is built in code ([`Style::new`]) or read from a TOML file ([`Style::load`],
+//! [`crate::io::style_file`]; the presets live in `styles/`, every field is documented in the
+//! README). Either way [`Style::check`] checks each value and names the field of any mistake.
+//! Every field has a default, so an empty file is the default style: the object sharp at
+//! shutter close over an alpha-blended trail of its own colours (Guan & Mueller §3.1, the
+//! flash-and-trail photograph).
 
 use crate::error::{Error, Result};
 use crate::raster::{Profile, Texture};
-use crate::scene::{colour, finite, parse_toml};
+use crate::scene::{finite, rgb};
 use serde::Deserialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Most stroboscopic copies a trail may be cut into.
 pub const MAX_COPIES: u32 = 64;
@@ -20,145 +21,6 @@ pub const MAX_SPEED_LINES: u32 = 10_000;
 
 /// Largest side of a trail texture image, px.
 pub const MAX_TEXTURE_SIDE: u32 = 2048;
-
-#[derive(Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-struct StyleSpec {
-    description: Option<String>,
-    background: Option<[f64; 3]>,
-    #[serde(default)]
-    object: ObjectLookSpec,
-    #[serde(default)]
-    trail: TrailSpec,
-    #[serde(default)]
-    speed_lines: SpeedLinesSpec,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields, default)]
-struct ObjectLookSpec {
-    draw: bool,
-    flash: f64,
-    opacity: f64,
-    colour: Option<[f64; 3]>,
-}
-
-impl Default for ObjectLookSpec {
-    fn default() -> Self {
-        ObjectLookSpec {
-            draw: true,
-            flash: 1.0,
-            opacity: 1.0,
-            colour: None,
-        }
-    }
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields, default)]
-struct TrailSpec {
-    draw: bool,
-    length: f64,
-    offset: f64,
-    copies: u32,
-    duty: f64,
-    blend: Blend,
-    composite: Composite,
-    intensity: f64,
-    density: f64,
-    width: f64,
-    colour: TrailColourSpec,
-    ramp: Option<Vec<[f64; 3]>>,
-    ramp_by: RampBy,
-    speed_range: Option<[f64; 2]>,
-    fade: f64,
-    texture: TextureSpec,
-    modulate_light: bool,
-    modulate_view: bool,
-    emitters: Emitters,
-}
-
-impl Default for TrailSpec {
-    fn default() -> Self {
-        TrailSpec {
-            draw: true,
-            length: 1.0,
-            offset: 0.0,
-            copies: 1,
-            duty: 1.0,
-            blend: Blend::Alpha,
-            composite: Composite::Under,
-            intensity: 1.0,
-            density: 1.0,
-            width: 1.0,
-            colour: TrailColourSpec::Object,
-            ramp: None,
-            ramp_by: RampBy::Speed,
-            speed_range: None,
-            fade: 1.0,
-            texture: TextureSpec::Name(TextureName::Gaussian),
-            modulate_light: false,
-            modulate_view: false,
-            emitters: Emitters::Visible,
-        }
-    }
-}
-
-#[derive(Deserialize, Clone, Copy)]
-#[serde(rename_all = "kebab-case")]
-enum TrailColourSpec {
-    Object,
-    Ramp,
-}
-
-#[derive(Deserialize)]
-#[serde(untagged)]
-enum TextureSpec {
-    Name(TextureName),
-    Image { image: PathBuf },
-}
-
-#[derive(Deserialize, Clone, Copy)]
-#[serde(rename_all = "kebab-case")]
-enum TextureName {
-    Gaussian,
-    Disc,
-    Ring,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields, default)]
-struct SpeedLinesSpec {
-    draw: bool,
-    count: u32,
-    select: Select,
-    spacing: f64,
-    length: f64,
-    offset: f64,
-    width: f64,
-    taper: f64,
-    fade: f64,
-    opacity: f64,
-    colour: [f64; 3],
-}
-
-impl Default for SpeedLinesSpec {
-    fn default() -> Self {
-        SpeedLinesSpec {
-            draw: false,
-            count: 40,
-            select: Select::Silhouette,
-            spacing: 12.0,
-            length: 1.0,
-            offset: 0.0,
-            width: 2.0,
-            taper: 0.2,
-            fade: 0.0,
-            opacity: 0.9,
-            colour: [0.0; 3],
-        }
-    }
-}
 
 /// How the trail layer is added to what lies behind it (Guan & Mueller §4).
 #[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
@@ -331,24 +193,90 @@ pub struct Style {
 }
 
 impl Default for Style {
+    /// The flash-and-trail look: what an empty style file gives.
     fn default() -> Self {
-        validate(StyleSpec::default(), Path::new("(default style)"))
-            .expect("the default style is valid")
+        crate::io::style_file::default_style()
     }
 }
 
 impl Style {
-    /// Read and validate a style file; a texture image is found relative to it.
-    pub fn load(path: &Path) -> Result<Style> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Style::parse(&text, path)
+    /// A style of `object`, `trail` and `speed_lines` over the scene's own background, with
+    /// every value checked ([`Style::check`]).
+    pub fn new(object: ObjectLook, trail: Trail, speed_lines: SpeedLines) -> Result<Style> {
+        let style = Style {
+            source: None,
+            description: String::new(),
+            background: None,
+            object,
+            trail,
+            speed_lines,
+        };
+        style.check()?;
+        Ok(style)
     }
 
-    /// Validate style text; `path` names the file in messages and anchors a texture's path.
-    pub fn parse(text: &str, path: &Path) -> Result<Style> {
-        let mut style = validate(parse_toml(text, path)?, path)?;
-        style.source = Some(path.to_path_buf());
-        Ok(style)
+    /// Check every value; an error names the field as a style file spells it (`trail.fade`) and
+    /// says what would be right.
+    pub fn check(&self) -> Result<()> {
+        let o = &self.object;
+        within("object.flash", o.flash, 0.0, 1.0)?;
+        within("object.opacity", o.opacity, 0.0, 1.0)?;
+        if let Some(c) = o.colour {
+            rgb("object.colour", c)?;
+        }
+        let t = &self.trail;
+        if let TrailColour::Ramp {
+            stops, speed_range, ..
+        } = &t.colour
+        {
+            if stops.len() < 2 {
+                return Err(Error::invalid(
+                    "trail.ramp",
+                    format!("has {} stop(s): a ramp needs at least two", stops.len()),
+                ));
+            }
+            for (i, c) in stops.iter().enumerate() {
+                rgb(&format!("trail.ramp[{i}]"), *c)?;
+            }
+            if let Some([lo, hi]) = *speed_range {
+                let lo = finite("trail.speed_range[0]", lo)?;
+                let hi = finite("trail.speed_range[1]", hi)?;
+                if !(0.0 <= lo && lo < hi) {
+                    return Err(Error::invalid(
+                        "trail.speed_range",
+                        format!("[{lo}, {hi}]: need 0 ≤ slowest < fastest (px per exposure)"),
+                    ));
+                }
+            }
+        }
+        if (t.profile == Profile::Texture) != t.texture.is_some() {
+            return Err(Error::invalid(
+                "trail.texture",
+                "a texture profile goes with a texture image, and only with one",
+            ));
+        }
+        within("trail.length", t.length, 0.0, 1.0)?;
+        within("trail.offset", t.offset, 0.0, 1.0)?;
+        count("trail.copies", t.copies, MAX_COPIES)?;
+        share("trail.duty", t.duty)?;
+        within("trail.intensity", t.intensity, 0.0, 100.0)?;
+        within("trail.width", t.width, 0.1, 20.0)?;
+        share("trail.density", t.density)?;
+        within("trail.fade", t.fade, 0.0, 1.0)?;
+        let s = &self.speed_lines;
+        count("speed_lines.count", s.count, MAX_SPEED_LINES)?;
+        within("speed_lines.spacing", s.spacing, 0.0, 1e4)?;
+        within("speed_lines.length", s.length, 0.0, 1.0)?;
+        within("speed_lines.offset", s.offset, 0.0, 1.0)?;
+        within("speed_lines.width", s.width, 0.01, 100.0)?;
+        within("speed_lines.taper", s.taper, 0.0, 1.0)?;
+        within("speed_lines.fade", s.fade, 0.0, 1.0)?;
+        within("speed_lines.opacity", s.opacity, 0.0, 1.0)?;
+        rgb("speed_lines.colour", s.colour)?;
+        if let Some(c) = self.background {
+            rgb("background", c)?;
+        }
+        Ok(())
     }
 
     /// The style's name: its file's stem, or `default`.
@@ -358,6 +286,42 @@ impl Style {
             .as_ref()
             .and_then(|p| p.file_stem())
             .map_or_else(|| "default".into(), |s| s.to_string_lossy().into_owned())
+    }
+}
+
+/// A number in [lo, hi], or an error naming `field`.
+fn within(field: &str, v: f64, lo: f64, hi: f64) -> Result<f64> {
+    if (lo..=hi).contains(&finite(field, v)?) {
+        Ok(v)
+    } else {
+        Err(Error::invalid(
+            field,
+            format!("{v}: must be between {lo} and {hi}"),
+        ))
+    }
+}
+
+/// A share in (0, 1], or an error naming `field`.
+fn share(field: &str, v: f64) -> Result<f64> {
+    if finite(field, v)? > 0.0 && v <= 1.0 {
+        Ok(v)
+    } else {
+        Err(Error::invalid(
+            field,
+            format!("{v}: must be greater than 0 and at most 1"),
+        ))
+    }
+}
+
+/// A count from 1 to `max`, or an error naming `field`.
+fn count(field: &str, v: u32, max: u32) -> Result<u32> {
+    if (1..=max).contains(&v) {
+        Ok(v)
+    } else {
+        Err(Error::invalid(
+            field,
+            format!("{v}: use between 1 and {max}"),
+        ))
     }
 }
 
@@ -375,226 +339,9 @@ pub fn ramp_colour(stops: &[[f32; 3]], u: f64) -> [f32; 3] {
     [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * f)
 }
 
-/// A number in [lo, hi].
-fn within(path: &Path, field: &str, v: f64, lo: f64, hi: f64) -> Result<f64> {
-    if (lo..=hi).contains(&finite(path, field, v)?) {
-        Ok(v)
-    } else {
-        Err(Error::input(
-            path,
-            field,
-            format!("{v}: must be between {lo} and {hi}"),
-        ))
-    }
-}
-
-/// A share in (0, 1].
-fn share(path: &Path, field: &str, v: f64) -> Result<f64> {
-    if finite(path, field, v)? > 0.0 && v <= 1.0 {
-        Ok(v)
-    } else {
-        Err(Error::input(
-            path,
-            field,
-            format!("{v}: must be greater than 0 and at most 1"),
-        ))
-    }
-}
-
-/// A count from 1 to `max`.
-fn count(path: &Path, field: &str, v: u32, max: u32) -> Result<u32> {
-    if (1..=max).contains(&v) {
-        Ok(v)
-    } else {
-        Err(Error::input(
-            path,
-            field,
-            format!("{v}: use between 1 and {max}"),
-        ))
-    }
-}
-
-fn validate(spec: StyleSpec, path: &Path) -> Result<Style> {
-    let o = &spec.object;
-    let object = ObjectLook {
-        draw: o.draw,
-        flash: within(path, "object.flash", o.flash, 0.0, 1.0)?,
-        opacity: within(path, "object.opacity", o.opacity, 0.0, 1.0)?,
-        colour: o
-            .colour
-            .map(|c| colour(path, "object.colour", c))
-            .transpose()?,
-    };
-    let t = &spec.trail;
-    let trail_colour = match (t.colour, &t.ramp) {
-        (TrailColourSpec::Object, _) => TrailColour::Object,
-        (TrailColourSpec::Ramp, None) => {
-            return Err(Error::input(
-                path,
-                "trail.ramp",
-                "colour = \"ramp\" needs `ramp`, a list of at least two [r, g, b] stops",
-            ))
-        }
-        (TrailColourSpec::Ramp, Some(stops)) => {
-            if stops.len() < 2 {
-                return Err(Error::input(
-                    path,
-                    "trail.ramp",
-                    format!("has {} stop(s): a ramp needs at least two", stops.len()),
-                ));
-            }
-            let stops = stops
-                .iter()
-                .enumerate()
-                .map(|(i, c)| colour(path, &format!("trail.ramp[{i}]"), *c))
-                .collect::<Result<_>>()?;
-            let speed_range = match t.speed_range {
-                None => None,
-                Some([lo, hi]) => {
-                    let lo = finite(path, "trail.speed_range[0]", lo)?;
-                    let hi = finite(path, "trail.speed_range[1]", hi)?;
-                    if !(0.0 <= lo && lo < hi) {
-                        return Err(Error::input(
-                            path,
-                            "trail.speed_range",
-                            format!("[{lo}, {hi}]: need 0 ≤ slowest < fastest (px per exposure)"),
-                        ));
-                    }
-                    Some([lo, hi])
-                }
-            };
-            TrailColour::Ramp {
-                stops,
-                by: t.ramp_by,
-                speed_range,
-            }
-        }
-    };
-    let (profile, texture) = match &t.texture {
-        TextureSpec::Name(TextureName::Gaussian) => (Profile::Gaussian, None),
-        TextureSpec::Name(TextureName::Disc) => (Profile::Disc, None),
-        TextureSpec::Name(TextureName::Ring) => (Profile::Ring, None),
-        TextureSpec::Image { image } => {
-            let base = path.parent().unwrap_or(Path::new("."));
-            (
-                Profile::Texture,
-                Some(load_texture(&base.join(image), path)?),
-            )
-        }
-    };
-    let trail = Trail {
-        draw: t.draw,
-        length: within(path, "trail.length", t.length, 0.0, 1.0)?,
-        offset: within(path, "trail.offset", t.offset, 0.0, 1.0)?,
-        copies: count(path, "trail.copies", t.copies, MAX_COPIES)?,
-        duty: share(path, "trail.duty", t.duty)?,
-        blend: t.blend,
-        composite: t.composite,
-        intensity: within(path, "trail.intensity", t.intensity, 0.0, 100.0)?,
-        width: within(path, "trail.width", t.width, 0.1, 20.0)?,
-        density: share(path, "trail.density", t.density)?,
-        colour: trail_colour,
-        fade: within(path, "trail.fade", t.fade, 0.0, 1.0)?,
-        profile,
-        texture,
-        modulate_light: t.modulate_light,
-        modulate_view: t.modulate_view,
-        emitters: t.emitters,
-    };
-    let s = &spec.speed_lines;
-    let speed_lines = SpeedLines {
-        draw: s.draw,
-        count: count(path, "speed_lines.count", s.count, MAX_SPEED_LINES)?,
-        select: s.select,
-        spacing: within(path, "speed_lines.spacing", s.spacing, 0.0, 1e4)?,
-        length: within(path, "speed_lines.length", s.length, 0.0, 1.0)?,
-        offset: within(path, "speed_lines.offset", s.offset, 0.0, 1.0)?,
-        width: within(path, "speed_lines.width", s.width, 0.01, 100.0)?,
-        taper: within(path, "speed_lines.taper", s.taper, 0.0, 1.0)?,
-        fade: within(path, "speed_lines.fade", s.fade, 0.0, 1.0)?,
-        opacity: within(path, "speed_lines.opacity", s.opacity, 0.0, 1.0)?,
-        colour: colour(path, "speed_lines.colour", s.colour)?,
-    };
-    Ok(Style {
-        source: None,
-        description: spec.description.unwrap_or_default(),
-        background: spec
-            .background
-            .map(|c| colour(path, "background", c))
-            .transpose()?,
-        object,
-        trail,
-        speed_lines,
-    })
-}
-
-/// A trail texture from an image file: its luminance times its alpha, in [0, 1].
-fn load_texture(image_path: &Path, style_path: &Path) -> Result<Texture> {
-    let field = "trail.texture.image";
-    let image = image::open(image_path).map_err(|e| {
-        Error::input(
-            style_path,
-            field,
-            format!("cannot read {}: {e}", image_path.display()),
-        )
-    })?;
-    let (width, height) = (image.width(), image.height());
-    if width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE {
-        return Err(Error::input(
-            style_path,
-            field,
-            format!(
-                "{} is {width}×{height}: textures may be at most {MAX_TEXTURE_SIDE} px a side",
-                image_path.display()
-            ),
-        ));
-    }
-    let rgba = image.to_rgba32f();
-    let values = rgba
-        .pixels()
-        .map(|p| {
-            let [r, g, b, a] = p.0;
-            ((0.2126 * r + 0.7152 * g + 0.0722 * b) * a).clamp(0.0, 1.0)
-        })
-        .collect();
-    Texture::new(width, height, values).ok_or_else(|| {
-        Error::input(
-            style_path,
-            field,
-            format!(
-                "{} is blank: a texture needs some light inside its inscribed circle",
-                image_path.display()
-            ),
-        )
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn error_of(text: &str) -> String {
-        Style::parse(text, Path::new("look.toml"))
-            .expect_err("should be rejected")
-            .to_string()
-    }
-
-    #[test]
-    fn an_empty_style_is_the_flash_and_trail_default() {
-        let style = Style::parse("", Path::new("plain.toml")).unwrap();
-        assert_eq!(style.name(), "plain");
-        assert!(style.object.draw && style.object.flash == 1.0 && style.trail.draw);
-        assert_eq!(style.trail.blend, Blend::Alpha);
-        assert_eq!(style.trail.emitters, Emitters::Visible);
-        assert!(!style.speed_lines.draw);
-        assert_eq!(
-            Style {
-                source: None,
-                ..style
-            },
-            Style::default()
-        );
-    }
 
     #[test]
     fn ramps_interpolate_between_evenly_spaced_stops() {
@@ -615,26 +362,26 @@ mod tests {
     }
 
     #[test]
-    fn mistakes_name_their_field() {
-        assert!(error_of("[trail]\nlength = 1.5").contains("trail.length"));
-        assert!(error_of("[trail]\nfade = nan").contains("trail.fade"));
-        assert!(error_of("[trail]\ncopies = 0").contains("trail.copies"));
-        assert!(error_of("[trail]\ncolour = \"ramp\"").contains("trail.ramp"));
-        assert!(
-            error_of("[trail]\ncolour = \"ramp\"\nramp = [[1, 0, 0], [2e5, 0, 0]]")
-                .contains("trail.ramp[1][0]")
-        );
-        assert!(error_of("[object]\nflash = -0.1").contains("object.flash"));
-        assert!(error_of("[speed_lines]\nwidth = 0").contains("speed_lines.width"));
-        let unknown = error_of("[trail]\nlenght = 0.5");
-        assert!(
-            unknown.contains("lenght") && unknown.contains("line 2"),
-            "{unknown}"
-        );
-        let texture = error_of("[trail]\ntexture = { image = \"no-such.png\" }");
-        assert!(
-            texture.contains("trail.texture.image") && texture.contains("no-such.png"),
-            "{texture}"
-        );
+    fn styles_built_in_code_are_checked() {
+        let default = Style::default();
+        let built = Style::new(
+            default.object.clone(),
+            default.trail.clone(),
+            default.speed_lines.clone(),
+        )
+        .unwrap();
+        assert_eq!(built, default);
+        let mut trail = default.trail.clone();
+        trail.duty = 0.0;
+        let message = Style::new(default.object.clone(), trail, default.speed_lines.clone())
+            .unwrap_err()
+            .to_string();
+        assert!(message.starts_with("trail.duty: 0: "), "{message}");
+        let mut trail = default.trail.clone();
+        trail.profile = Profile::Texture;
+        let message = Style::new(default.object, trail, default.speed_lines)
+            .unwrap_err()
+            .to_string();
+        assert!(message.starts_with("trail.texture: "), "{message}");
     }
 }

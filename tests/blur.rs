@@ -55,9 +55,9 @@ fn one_segment_is_the_summed_covariance_gaussian() {
     // Guan & Mueller §3.3 / DESIGN.md: Σ + m mᵀ/12 for a box shutter, centred mid-path, same weight.
     let (scene, _) = translating_scene();
     let scale = px_per_unit(&scene.camera);
-    let surfel = &scene.objects[0].surfels[0];
+    let surfel = &scene.objects[0].surfels()[0];
     let (weight, m) = (surfel.area * scale * scale, 4.0 * scale);
-    let variance = SIGMA_PX * SIGMA_PX + streak::raster::PREFILTER_VARIANCE_PX2;
+    let variance = SIGMA_PX * SIGMA_PX + streak::render::PREFILTER_VARIANCE_PX2;
     let (vx, vy) = (variance + m * m / 12.0, variance);
     let oracle: Vec<f64> = (0..64)
         .flat_map(|y| (0..128).map(move |x| (x as f64 + 0.5 - 64.0, y as f64 + 0.5 - 32.0)))

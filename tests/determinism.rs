@@ -39,7 +39,7 @@ fn gallery_scene(name: &str) -> Scene {
         .join("gallery")
         .join(name);
     let mut scene = Scene::load(&path).unwrap();
-    scene.camera = scene.camera.resized(160, 120);
+    scene.camera = scene.camera.resized(160, 120).unwrap();
     scene
 }
 

@@ -2,7 +2,8 @@
 //! render as a closed surface: coverage ≈ 1 everywhere inside its silhouette.
 
 use glam::DVec3;
-use streak::pointcloud::{write_ply, PointCloud};
+use streak::io::ply::write_ply;
+use streak::surfels::PointCloud;
 mod common;
 
 use common::{least_coverage_inside_unit_sphere, UNIT_SPHERE_VIEW};

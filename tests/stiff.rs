@@ -7,10 +7,10 @@ mod common;
 
 use common::*;
 use glam::{DQuat, DVec3};
-use streak::geometry::Surfel;
-use streak::motion::Pose;
 use streak::plan::{ObjectMotion, MAX_SEGMENTS_PER_INTERVAL};
-use streak::raster::{PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
+use streak::render::{PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
+use streak::scene::Pose;
+use streak::surfels::Surfel;
 use streak::{Framebuffer, Method, Plan, Render, Scene};
 
 /// Every splat renderer; each case runs all of them.
@@ -205,7 +205,7 @@ fn coloured(mut surfels: Vec<Surfel>, colour: [f32; 3]) -> Vec<Surfel> {
 }
 
 /// A translation from `from` to `to` over the exposure, turned by `rotation` throughout.
-fn sliding(rotation: DQuat, from: DVec3, to: DVec3) -> streak::motion::Motion {
+fn sliding(rotation: DQuat, from: DVec3, to: DVec3) -> streak::scene::Motion {
     let at = |translation| Pose {
         translation,
         rotation,

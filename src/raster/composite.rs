@@ -16,7 +16,7 @@
 //! RMSE rose from 0.033 at τ = 8 px to 0.073 at τ = 0.25 px with one bin).
 
 use super::Footprint;
-use crate::shutter::Shutter;
+use crate::scene::shutter::Shutter;
 
 /// Once this share of the exposure is left unoccluded at a pixel, farther surfaces cannot change
 /// its 8-bit value.
@@ -187,7 +187,8 @@ impl<const B: usize> PixelState<B> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raster::{ScreenSplat, Sym2, TimeExtent};
+    use crate::math::Sym2;
+    use crate::raster::{ScreenSplat, TimeExtent};
     use glam::DVec2;
 
     /// A footprint at `depth` covering the pixel during `span`, with the weight `value` it is

@@ -20,6 +20,7 @@ pub use composite::TimeBins;
 pub use profile::{Profile, Texture};
 
 use crate::framebuffer::Framebuffer;
+use crate::math::Sym2;
 use composite::PixelState;
 use glam::DVec2;
 use profile::Sampler;
@@ -47,86 +48,6 @@ const CUTOFF_Q: f32 = (CUTOFF_SIGMAS * CUTOFF_SIGMAS) as f32;
 
 /// Tile side in pixels.
 pub const TILE_PX: u32 = 16;
-
-/// A symmetric 2×2 matrix (a covariance or its inverse, the conic).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Sym2 {
-    /// Row 0, column 0.
-    pub xx: f64,
-    /// The off-diagonal entry.
-    pub xy: f64,
-    /// Row 1, column 1.
-    pub yy: f64,
-}
-
-impl Sym2 {
-    /// σ² I.
-    #[must_use]
-    pub fn isotropic(variance: f64) -> Self {
-        Sym2 {
-            xx: variance,
-            xy: 0.0,
-            yy: variance,
-        }
-    }
-
-    /// v vᵀ.
-    #[must_use]
-    pub fn outer(v: DVec2) -> Self {
-        Sym2 {
-            xx: v.x * v.x,
-            xy: v.x * v.y,
-            yy: v.y * v.y,
-        }
-    }
-
-    /// vᵀ S v.
-    #[must_use]
-    pub fn quadratic(&self, v: DVec2) -> f64 {
-        self.xx * v.x * v.x + 2.0 * self.xy * v.x * v.y + self.yy * v.y * v.y
-    }
-
-    /// The determinant.
-    #[must_use]
-    pub fn det(&self) -> f64 {
-        self.xx * self.yy - self.xy * self.xy
-    }
-
-    /// Every entry times `k`.
-    #[must_use]
-    pub fn scaled(&self, k: f64) -> Self {
-        Sym2 {
-            xx: self.xx * k,
-            xy: self.xy * k,
-            yy: self.yy * k,
-        }
-    }
-
-    /// The inverse, or `None` when singular or not finite.
-    #[must_use]
-    pub fn inverse(&self) -> Option<Self> {
-        let det = self.det();
-        if !(det > 0.0 && det.is_finite()) {
-            return None;
-        }
-        Some(Sym2 {
-            xx: self.yy / det,
-            xy: -self.xy / det,
-            yy: self.xx / det,
-        })
-    }
-}
-
-impl std::ops::Add for Sym2 {
-    type Output = Sym2;
-    fn add(self, o: Sym2) -> Sym2 {
-        Sym2 {
-            xx: self.xx + o.xx,
-            xy: self.xy + o.xy,
-            yy: self.yy + o.yy,
-        }
-    }
-}
 
 /// A screen-space elliptical Gaussian ready to rasterize.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -283,7 +204,7 @@ impl Footprint {
 
     /// The footprint's value at the centre of pixel (x, y), zero beyond the cut-off; `texture`
     /// is the image a [`Profile::Texture`] footprint maps.
-    #[must_use]
+    #[cfg(test)]
     pub fn weight_at(&self, x: u32, y: u32, texture: Option<&Texture>) -> f32 {
         self.sampled_weight_at(&Sampler::new(self.profile, self.conic, texture), x, y)
     }

@@ -32,11 +32,12 @@
 //! through the near plane) and makes the groups depend on footprint order.
 
 use super::{draw, Render, Stats};
+use crate::math::Sym2;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{object_footprints_at, per_surfel, view_surfel, Cull, Instant, SurfelView};
-use crate::raster::{ScreenSplat, Sym2, TimeBins, TimeExtent, PREFILTER_VARIANCE_PX2};
+use crate::raster::{ScreenSplat, TimeBins, TimeExtent, PREFILTER_VARIANCE_PX2};
+use crate::scene::shutter::{Shutter, TimeMoments};
 use crate::scene::Scene;
-use crate::shutter::{Shutter, TimeMoments};
 use glam::DVec2;
 
 /// Bins of shutter time in which coverage is composited (see [`crate::raster::TimeBins`]). Where
@@ -73,8 +74,8 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             .iter()
             .map(|&[t0, t1]| scene.shutter.moments(t0, t1))
             .collect();
-        let (kept, culled) = per_surfel(object.surfels.len(), |i, kept, culled| {
-            let surfel = &object.surfels[i];
+        let (kept, culled) = per_surfel(object.surfels().len(), |i, kept, culled| {
+            let surfel = &object.surfels()[i];
             let views: Vec<Option<SurfelView>> = instants
                 .iter()
                 .map(|instant| view_surfel(camera, instant, &scene.lighting, surfel))

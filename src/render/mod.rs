@@ -16,6 +16,7 @@ mod kernel3d;
 mod reference;
 mod still;
 
+pub use crate::raster::{CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility};
 pub use reference::ReferenceStats;

@@ -3,11 +3,10 @@
 #![allow(dead_code)]
 
 use glam::{DQuat, DVec3};
-use streak::camera::Camera;
-use streak::geometry::Surfel;
-use streak::motion::{Keyframe, Motion, Pose};
-use streak::scene::{Lighting, Object, Scene};
-use streak::shutter::Shutter;
+use streak::scene::Camera;
+use streak::scene::{Keyframe, Motion, Pose};
+use streak::scene::{Object, Scene};
+use streak::surfels::Surfel;
 use streak::{render, Framebuffer, Method, Render};
 
 /// Camera distance; the surfels sit in the plane z = 0, parallel to the image plane, where the
@@ -15,15 +14,17 @@ use streak::{render, Framebuffer, Method, Render};
 pub const DISTANCE: f64 = 10.0;
 
 pub fn camera(width: u32, height: u32) -> Camera {
-    Camera::look_at(
+    Camera::new(
         DVec3::new(0.0, 0.0, DISTANCE),
         DVec3::ZERO,
         DVec3::Y,
         30.0,
         width,
         height,
-        0.01,
     )
+    .unwrap()
+    .with_near(0.01)
+    .unwrap()
 }
 
 /// World units → pixels in the plane z = 0.
@@ -31,21 +32,16 @@ pub fn px_per_unit(camera: &Camera) -> f64 {
     camera.focal_px / DISTANCE
 }
 
+/// A black scene of `objects`, unlit, with the default shutter.
 pub fn scene(camera: Camera, objects: Vec<Object>) -> Scene {
-    Scene {
-        source: "test".into(),
-        camera,
-        background: [0.0; 3],
-        shutter: Shutter::default(),
-        lighting: Lighting::default(),
-        objects,
-        style: None,
-    }
+    let mut scene = Scene::new(camera).with_background([0.0; 3]).unwrap();
+    scene.objects = objects;
+    scene
 }
 
 /// A white surfel at `position` facing the camera, whose Gaussian has standard deviation `sigma`.
 pub fn facing_surfel(position: DVec3, sigma: f64) -> Surfel {
-    let area = (sigma / streak::geometry::SIGMA_PER_SPACING).powi(2);
+    let area = (sigma / streak::surfels::SIGMA_PER_SPACING).powi(2);
     Surfel::isotropic(position, DVec3::Z, area, None, [1.0; 3])
 }
 
@@ -94,11 +90,7 @@ pub fn linear(from: DVec3, to: DVec3) -> Motion {
 }
 
 pub fn object(surfels: Vec<Surfel>, motion: Motion) -> Object {
-    Object {
-        name: "test".into(),
-        surfels,
-        motion,
-    }
+    Object::new("test", surfels, motion)
 }
 
 /// The scene drawn by `method`.
@@ -252,7 +244,7 @@ pub fn translating_scene() -> (Scene, Vec<f64>) {
         64,
         [64.0 - travel / 2.0 * scale, 32.0],
         [travel * scale, 0.0],
-        SIGMA_PX * SIGMA_PX + streak::raster::PREFILTER_VARIANCE_PX2,
+        SIGMA_PX * SIGMA_PX + streak::render::PREFILTER_VARIANCE_PX2,
         weight,
     );
     (scene(camera, vec![object(vec![surfel], motion)]), exact)

@@ -33,8 +33,8 @@ use crate::project::{
     per_surfel, static_footprint, view_surfel, Cull, Culled, Instant, SurfelView,
 };
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
+use crate::scene::shutter::{Shutter, ShutterShape};
 use crate::scene::{Object, Scene};
-use crate::shutter::{Shutter, ShutterShape};
 use crate::style::{
     ramp_colour, Blend, Composite, Emitters, RampBy, Select, SpeedLines, Style, Trail, TrailColour,
 };
@@ -328,7 +328,7 @@ fn draw_trails(footprints: &[Footprint], target: &Target, trail: &Trail) -> (Lay
 fn views_at(scene: &Scene, object: &Object, t: f64) -> Vec<Option<SurfelView>> {
     let instant = Instant::new(&scene.camera, &object.motion.pose_at(t));
     object
-        .surfels
+        .surfels()
         .par_iter()
         .map(|s| view_surfel(&scene.camera, &instant, &scene.lighting, s))
         .collect()
@@ -444,11 +444,11 @@ fn object_trails(
         .iter()
         .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
         .collect();
-    per_surfel(object.surfels.len(), |i, kept, culled| {
+    per_surfel(object.surfels().len(), |i, kept, culled| {
         if !emits[i] {
             return;
         }
-        let surfel = &object.surfels[i];
+        let surfel = &object.surfels()[i];
         let views: Vec<Option<SurfelView>> = instants
             .iter()
             .map(|instant| {
@@ -555,7 +555,7 @@ fn line_starts(
     views: &[Option<SurfelView>],
     emits: &[bool],
 ) -> Vec<LineStart> {
-    let surfels = &scene.objects[object].surfels;
+    let surfels = scene.objects[object].surfels();
     let motion = &scene.objects[object].motion;
     let instant = Instant::new(&scene.camera, &motion.pose_at(end_time));
     (0..surfels.len())
@@ -632,7 +632,7 @@ fn speed_line(
                 &scene.camera,
                 &instant,
                 &scene.lighting,
-                &object.surfels[surfel],
+                &object.surfels()[surfel],
             )
             .map(|v| v.splat.center)
         })

@@ -6,9 +6,10 @@
 //! splat sits at c + s·a3. Everything is in camera space and f64.
 
 use super::integral::{Primitive, RayQuadratic};
-use crate::camera::Camera;
+use crate::math::Sym2;
 use crate::project::plane_depth_gradient;
 use crate::raster::{CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2, TRUNCATION_GAIN};
+use crate::scene::camera::Camera;
 use glam::{DVec2, DVec3};
 
 /// Squared cut-off radius of the kernel's cylinder, in standard deviations (as the rasterizer's).
@@ -182,8 +183,12 @@ impl Kernel {
             return None;
         }
         let k = PREFILTER_VARIANCE_PX2 / det;
-        let widened = [1.0 + k * gram[2], -k * gram[1], 1.0 + k * gram[0]];
-        let (values, vectors) = symmetric_eigen(widened);
+        let widened = Sym2 {
+            xx: 1.0 + k * gram[2],
+            xy: -k * gram[1],
+            yy: 1.0 + k * gram[0],
+        };
+        let (values, vectors) = widened.eigen();
         let limit = MAX_PREFILTER_STRETCH * MAX_PREFILTER_STRETCH;
         let view_area = axes[0].cross(axes[1]).length();
         let affine = if values[0] > limit {
@@ -428,21 +433,6 @@ fn affine_kernel(
         depth_gradient,
     };
     (det > 0.0 && affine.amplitude.is_finite()).then_some(affine)
-}
-
-/// Eigenvalues and unit eigenvectors of the symmetric 2×2 matrix [[xx, xy], [xy, yy]].
-fn symmetric_eigen([xx, xy, yy]: [f64; 3]) -> ([f64; 2], [DVec2; 2]) {
-    let mean = 0.5 * (xx + yy);
-    let radius = (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
-    let values = [mean + radius, mean - radius];
-    let first = if xy.abs() > 1e-300 {
-        DVec2::new(values[0] - yy, xy).normalize()
-    } else if xx >= yy {
-        DVec2::X
-    } else {
-        DVec2::Y
-    };
-    (values, [first, first.perp()])
 }
 
 /// The convex hull of two axis-aligned boxes [x0, y0, x1, y1], counter-clockwise in screen

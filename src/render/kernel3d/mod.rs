@@ -222,7 +222,7 @@ fn kernels_over(
         [t0, 0.5 * (t0 + t1), t1].map(|t| Instant::new(camera, &object.motion.pose_at(t)));
     let [start, middle, end] = &instants;
     let results: Vec<Result<Kernel, Cull>> = object
-        .surfels
+        .surfels()
         .par_iter()
         .map(|surfel| {
             let (p0, p1) = (

@@ -1,100 +1,15 @@
-//! Surfels and the procedural primitives sampled into them.
-//!
-//! A surfel is a small oriented Gaussian disk: a centre, a unit normal, two tangent axes scaled to
-//! the Gaussian's standard deviation, and the surface area it stands for. The area is what makes
-//! coverage meaningful: a surfel's footprint integrates to its (projected) area, so the footprints
-//! of a densely sampled surface sum to ≈ 1 over its image and fall to ½ at its silhouette.
-//!
-//! Primitives are sampled on grids over their parameter domains with exact per-sample cell
-//! areas, so the sum of areas is the surface area (tests check it against the closed forms).
+//! Procedural surfaces centred at the origin, sampled on grids over their parameter domains with
+//! exact per-sample cell areas, so that the areas add up to the surface area (the tests check the
+//! closed forms).
 
-use crate::error::{Error, Result};
-use crate::mesh::MeshShape;
-use crate::pointcloud;
-use crate::volume::VolumeShape;
 use glam::DVec3;
-use serde::Deserialize;
-use std::path::{Path, PathBuf};
 
-/// Standard deviation of a surfel's Gaussian as a fraction of its cell's side. At 0.6 the sum of
-/// Gaussians on a regular grid ripples by ~0.2 % (Poisson summation: 2·exp(−2π²·0.6²)); below
-/// ~0.5 the ripple grows fast and holes show.
-pub const SIGMA_PER_SPACING: f64 = 0.6;
+use super::{Surfel, DEFAULT_GREY, MAX_SURFELS_PER_OBJECT, SIGMA_PER_SPACING};
+use crate::error::{Error, Result};
 
-/// The colour of freshly sampled surfels, before the object's colour is applied.
-const UNCOLOURED: [f32; 3] = [1.0; 3];
-
-/// A surface element in object space.
+/// A procedural surface, centred at the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Surfel {
-    /// Centre in object space.
-    pub position: DVec3,
-    /// Unit outward normal.
-    pub normal: DVec3,
-    /// First tangent axis, scaled to the Gaussian's standard deviation along it.
-    pub axis_u: DVec3,
-    /// Second tangent axis, scaled likewise.
-    pub axis_v: DVec3,
-    /// Surface area the surfel stands for.
-    pub area: f64,
-    /// Linear RGB.
-    pub colour: [f32; 3],
-}
-
-impl Surfel {
-    /// An isotropic surfel for a cell of `area`; `cover_radius`, when known, widens the Gaussian so
-    /// that its 2σ disc reaches the farthest point the surfel must cover.
-    #[must_use]
-    pub fn isotropic(
-        position: DVec3,
-        normal: DVec3,
-        area: f64,
-        cover_radius: Option<f64>,
-        colour: [f32; 3],
-    ) -> Self {
-        let sigma = (SIGMA_PER_SPACING * area.sqrt()).max(0.5 * cover_radius.unwrap_or(0.0));
-        let (u, v) = normal.any_orthonormal_pair();
-        Surfel {
-            position,
-            normal,
-            axis_u: u * sigma,
-            axis_v: v * sigma,
-            area,
-            colour,
-        }
-    }
-
-    /// A surfel for a parallelogram cell spanned by the tangent steps `step_u` and `step_v`.
-    fn from_cell(position: DVec3, step_u: DVec3, step_v: DVec3, outward: DVec3) -> Option<Self> {
-        let cross = step_u.cross(step_v);
-        let area = cross.length();
-        let mut normal = cross.try_normalize()?;
-        if normal.dot(outward) < 0.0 {
-            normal = -normal;
-        }
-        Some(Surfel {
-            position,
-            normal,
-            axis_u: step_u * SIGMA_PER_SPACING,
-            axis_v: step_v * SIGMA_PER_SPACING,
-            area,
-            colour: UNCOLOURED,
-        })
-    }
-}
-
-/// Most surfels one object may be sampled into: a spacing typo must not eat the machine.
-pub const MAX_SURFELS_PER_OBJECT: f64 = 20e6;
-
-/// Neighbours used to estimate normals, radii and areas of a point cloud, unless the scene says.
-pub const DEFAULT_NEIGHBOURS: usize = 12;
-
-/// An object's geometry, in its own object space: a procedural primitive (centred at the origin),
-/// a point cloud file, the iso-surface of a volume file (centred likewise) or a triangle mesh file
-/// sampled into surfels (centred likewise unless it says not to be).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum Shape {
+pub enum Primitive {
     /// A sphere of `radius`.
     Sphere {
         /// Radius.
@@ -136,210 +51,119 @@ pub enum Shape {
         /// Tube radius.
         tube: f64,
     },
-    /// A PLY point cloud (ascii or binary, optionally gzipped); normals, radii and areas missing
-    /// from the file are estimated from `neighbours` nearest neighbours.
-    Ply {
-        /// The file, relative to the scene file.
-        path: PathBuf,
-        /// Neighbours used for estimation (default [`DEFAULT_NEIGHBOURS`]).
-        neighbours: Option<usize>,
-    },
-    /// The iso-surface of a raw scalar volume (optionally gzipped), one surfel per voxel cell it
-    /// crosses (Guan & Mueller 2004, §3.1); see [`crate::volume`].
-    Volume(VolumeShape),
-    /// A triangle mesh (OBJ or PLY, optionally gzipped) sampled into a given number of surfels,
-    /// area-weighted; see [`crate::mesh`].
-    Mesh(MeshShape),
 }
 
-/// How an object is coloured.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(try_from = "toml::Value")]
-pub enum ColourSpec {
-    /// One linear RGB colour.
-    Rgb([f64; 3]),
-    /// 0.5 + 0.5·n of the object-space normal: colour sticks to the surface as it moves.
-    Normal,
-    /// The file's colours where it has them, else light grey.
-    Default,
-}
-
-impl TryFrom<toml::Value> for ColourSpec {
-    type Error = String;
-    fn try_from(value: toml::Value) -> std::result::Result<Self, String> {
-        let wrong =
-            || format!("colour must be [r, g, b] (linear, 0 to 1) or \"normal\", not {value}");
-        match &value {
-            toml::Value::String(s) if s == "normal" => Ok(ColourSpec::Normal),
-            toml::Value::Array(items) if items.len() == 3 => {
-                let mut rgb = [0.0; 3];
-                for (c, item) in rgb.iter_mut().zip(items) {
-                    *c = match item {
-                        toml::Value::Float(f) => *f,
-                        toml::Value::Integer(i) => *i as f64,
-                        _ => return Err(wrong()),
-                    };
-                }
-                Ok(ColourSpec::Rgb(rgb))
+impl Primitive {
+    /// Sample the surface into light grey surfels about `spacing` apart, at most
+    /// [`MAX_SURFELS_PER_OBJECT`]. Errors name the field: `spacing` (not finite and positive, or
+    /// so small that the budget would be exceeded), a dimension (`radius`, `size[1]`, …) that is
+    /// not finite and positive, or the torus knot itself when p or q is 0.
+    pub fn surfels(&self, spacing: f64) -> Result<Vec<Surfel>> {
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(Error::invalid(
+                "spacing",
+                format!("{spacing}: must be a finite number greater than zero"),
+            ));
+        }
+        let dimensions: Vec<(&str, f64)> = match *self {
+            Primitive::Sphere { radius } => vec![("radius", radius)],
+            Primitive::Quad { size } => vec![("size[0]", size[0]), ("size[1]", size[1])],
+            Primitive::Box { size } => vec![
+                ("size[0]", size[0]),
+                ("size[1]", size[1]),
+                ("size[2]", size[2]),
+            ],
+            Primitive::Cylinder { radius, length } => vec![("radius", radius), ("length", length)],
+            Primitive::Torus { major, minor } => vec![("major", major), ("minor", minor)],
+            Primitive::TorusKnot { scale, tube, .. } => vec![("scale", scale), ("tube", tube)],
+        };
+        for (name, v) in dimensions {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::invalid(
+                    name,
+                    format!("{v}: must be a finite number greater than zero"),
+                ));
             }
-            _ => Err(wrong()),
         }
-    }
-}
-
-const DEFAULT_GREY: [f32; 3] = [0.7, 0.7, 0.7];
-
-/// The colour a surfel gets under `spec`, given the file's colour if any.
-fn colour_for(spec: &ColourSpec, normal: DVec3, from_file: Option<[f32; 3]>) -> [f32; 3] {
-    match spec {
-        ColourSpec::Rgb(rgb) => rgb.map(|c| c as f32),
-        ColourSpec::Normal => (normal * 0.5 + 0.5).as_vec3().to_array(),
-        ColourSpec::Default => from_file.unwrap_or(DEFAULT_GREY),
-    }
-}
-
-/// Build an object's surfels. `file` names the scene in messages, `base` anchors relative paths,
-/// `field` is where the shape sits in the scene (e.g. `object[2].shape`).
-pub fn build_surfels(
-    shape: &Shape,
-    spacing: Option<f64>,
-    colour: &ColourSpec,
-    file: &Path,
-    base: &Path,
-    field: &str,
-) -> Result<Vec<Surfel>> {
-    if let Shape::Ply { path, neighbours } = shape {
-        let k = neighbours.unwrap_or(DEFAULT_NEIGHBOURS);
-        if !(3..=64).contains(&k) {
-            return Err(Error::input(
-                file,
-                format!("{field}.neighbours"),
-                format!("{k}: use between 3 and 64"),
-            ));
+        if let Primitive::TorusKnot { p, q, .. } = *self {
+            if p == 0 || q == 0 {
+                return Err(Error::invalid("", "a torus knot needs p ≥ 1 and q ≥ 1"));
+            }
         }
-        return surfels_from_cloud(&pointcloud::read_ply(&base.join(path))?, k, colour);
-    }
-    if let Shape::Volume(volume) = shape {
-        if spacing.is_some() {
-            return Err(Error::input(
-                file,
-                field.replace(".shape", ".spacing"),
-                "a volume makes one surfel per voxel cell its surface crosses: remove this \
-                 `spacing` (the distance between voxels is `shape.spacing = [x, y, z]`)",
-            ));
-        }
-        let mut surfels = volume.surfels(file, base, field, MAX_SURFELS_PER_OBJECT as usize)?;
-        for s in &mut surfels {
-            s.colour = colour_for(colour, s.normal, None);
-        }
-        return Ok(surfels);
-    }
-    if let Shape::Mesh(mesh) = shape {
-        if spacing.is_some() {
-            return Err(Error::input(
-                file,
-                field.replace(".shape", ".spacing"),
-                "a mesh is sampled into `shape.samples` surfels: remove this `spacing`",
-            ));
-        }
-        let mut surfels = mesh.surfels(file, base, field, MAX_SURFELS_PER_OBJECT as usize)?;
-        for s in &mut surfels {
-            s.colour = colour_for(colour, s.normal, None);
-        }
-        return Ok(surfels);
-    }
-    let dimensions: Vec<(&str, f64)> = match *shape {
-        Shape::Sphere { radius } => vec![("radius", radius)],
-        Shape::Quad { size } => vec![("size[0]", size[0]), ("size[1]", size[1])],
-        Shape::Box { size } => vec![
-            ("size[0]", size[0]),
-            ("size[1]", size[1]),
-            ("size[2]", size[2]),
-        ],
-        Shape::Cylinder { radius, length } => vec![("radius", radius), ("length", length)],
-        Shape::Torus { major, minor } => vec![("major", major), ("minor", minor)],
-        Shape::TorusKnot { scale, tube, .. } => vec![("scale", scale), ("tube", tube)],
-        Shape::Ply { .. } | Shape::Volume(_) | Shape::Mesh(_) => Vec::new(),
-    };
-    for (name, v) in &dimensions {
-        if !(v.is_finite() && *v > 0.0) {
-            return Err(Error::input(
-                file,
-                format!("{field}.{name}"),
-                format!("{v}: must be a finite number greater than zero"),
-            ));
-        }
-    }
-    if let Shape::TorusKnot { p, q, .. } = *shape {
-        if p == 0 || q == 0 {
-            return Err(Error::input(
-                file,
-                field,
-                "a torus knot needs p ≥ 1 and q ≥ 1",
-            ));
-        }
-    }
-    let spacing = spacing.ok_or_else(|| {
-        Error::input(
-            file,
-            field.replace(".shape", ".spacing"),
-            "a procedural shape needs `spacing`, the distance between surfels",
-        )
-    })?;
-    let mut surfels = sample_primitive(shape, spacing).ok_or_else(|| {
-        Error::input(
-            file,
-            field.replace(".shape", ".spacing"),
-            format!("{spacing} would make more than {MAX_SURFELS_PER_OBJECT:.0} surfels: use a larger spacing"),
-        )
-    })?;
-    for s in &mut surfels {
-        s.colour = colour_for(colour, s.normal, None);
-    }
-    Ok(surfels)
-}
-
-/// Surfels from a point cloud, estimating what the file does not give.
-fn surfels_from_cloud(
-    cloud: &pointcloud::PointCloud,
-    k: usize,
-    colour: &ColourSpec,
-) -> Result<Vec<Surfel>> {
-    let normals = match &cloud.normals {
-        Some(n) => n.clone(),
-        None => pointcloud::estimate_normals(&cloud.positions, k),
-    };
-    let (cover_radii, areas) = pointcloud::estimate_radii_and_areas(&cloud.positions, &normals, k);
-    Ok((0..cloud.positions.len())
-        .map(|i| {
-            let radius = cloud.radii.as_ref().map_or(cover_radii[i], |r| r[i]);
-            let from_file = cloud.colors.as_ref().map(|c| c[i]);
-            let colour = colour_for(colour, normals[i], from_file);
-            Surfel::isotropic(
-                cloud.positions[i],
-                normals[i],
-                areas[i],
-                Some(radius),
-                colour,
+        sample(self, spacing).ok_or_else(|| {
+            Error::invalid(
+                "spacing",
+                format!(
+                    "{spacing} would make more than {MAX_SURFELS_PER_OBJECT} surfels: use a larger spacing"
+                ),
             )
         })
-        .collect())
+    }
 }
 
-/// Sample a procedural `shape` into surfels about `spacing` apart (white; the caller colours them).
-fn sample_primitive(shape: &Shape, spacing: f64) -> Option<Vec<Surfel>> {
+/// A sphere of `radius` sampled `spacing` apart (see [`Primitive::surfels`]).
+pub fn sphere(radius: f64, spacing: f64) -> Result<Vec<Surfel>> {
+    Primitive::Sphere { radius }.surfels(spacing)
+}
+
+/// A rectangle of `size` in the xy plane facing +z, sampled `spacing` apart.
+pub fn quad(size: [f64; 2], spacing: f64) -> Result<Vec<Surfel>> {
+    Primitive::Quad { size }.surfels(spacing)
+}
+
+/// An axis-aligned box of `size`, sampled `spacing` apart.
+pub fn cuboid(size: [f64; 3], spacing: f64) -> Result<Vec<Surfel>> {
+    Primitive::Box { size }.surfels(spacing)
+}
+
+/// A capped cylinder along y, sampled `spacing` apart.
+pub fn cylinder(radius: f64, length: f64, spacing: f64) -> Result<Vec<Surfel>> {
+    Primitive::Cylinder { radius, length }.surfels(spacing)
+}
+
+/// A torus in the xz plane around y, sampled `spacing` apart.
+pub fn torus(major: f64, minor: f64, spacing: f64) -> Result<Vec<Surfel>> {
+    Primitive::Torus { major, minor }.surfels(spacing)
+}
+
+/// A (p, q) torus knot, sampled `spacing` apart.
+pub fn torus_knot(p: u32, q: u32, scale: f64, tube: f64, spacing: f64) -> Result<Vec<Surfel>> {
+    Primitive::TorusKnot { p, q, scale, tube }.surfels(spacing)
+}
+
+impl Surfel {
+    /// A surfel for a parallelogram cell spanned by the tangent steps `step_u` and `step_v`.
+    fn from_cell(position: DVec3, step_u: DVec3, step_v: DVec3, outward: DVec3) -> Option<Self> {
+        let cross = step_u.cross(step_v);
+        let area = cross.length();
+        let mut normal = cross.try_normalize()?;
+        if normal.dot(outward) < 0.0 {
+            normal = -normal;
+        }
+        Some(Surfel {
+            position,
+            normal,
+            axis_u: step_u * SIGMA_PER_SPACING,
+            axis_v: step_v * SIGMA_PER_SPACING,
+            area,
+            colour: DEFAULT_GREY,
+        })
+    }
+}
+
+/// Sample `primitive` into surfels about `spacing` apart, or `None` past the budget.
+fn sample(primitive: &Primitive, spacing: f64) -> Option<Vec<Surfel>> {
     let mut out = Sampler::default();
-    match *shape {
-        Shape::Ply { .. } | Shape::Volume(_) | Shape::Mesh(_) => {}
-        Shape::Sphere { radius } => sample_sphere(radius, spacing, &mut out),
-        Shape::Quad { size } => sample_quad(
+    match *primitive {
+        Primitive::Sphere { radius } => sample_sphere(radius, spacing, &mut out),
+        Primitive::Quad { size } => sample_quad(
             DVec3::ZERO,
             DVec3::X * size[0],
             DVec3::Y * size[1],
             spacing,
             &mut out,
         ),
-        Shape::Box { size } => {
+        Primitive::Box { size } => {
             let h = DVec3::from_array(size) * 0.5;
             for axis in 0..3 {
                 let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
@@ -360,7 +184,7 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Option<Vec<Surfel>> {
                 }
             }
         }
-        Shape::Cylinder { radius, length } => {
+        Primitive::Cylinder { radius, length } => {
             let side = |u: f64, v: f64| {
                 let phi = u * std::f64::consts::TAU;
                 DVec3::new(radius * phi.cos(), (v - 0.5) * length, -radius * phi.sin())
@@ -376,7 +200,7 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Option<Vec<Surfel>> {
                 );
             }
         }
-        Shape::Torus { major, minor } => {
+        Primitive::Torus { major, minor } => {
             let ring = move |u: f64| {
                 let phi = u * std::f64::consts::TAU;
                 DVec3::new(major * phi.cos(), 0.0, -major * phi.sin())
@@ -390,7 +214,7 @@ fn sample_primitive(shape: &Shape, spacing: f64) -> Option<Vec<Surfel>> {
             let outward = move |p: DVec3| p - DVec3::new(p.x, 0.0, p.z).normalize() * major;
             sample_parametric(surface, spacing, outward, &mut out);
         }
-        Shape::TorusKnot { p, q, scale, tube } => {
+        Primitive::TorusKnot { p, q, scale, tube } => {
             let (p, q) = (f64::from(p), f64::from(q));
             let curve = move |u: f64| {
                 let phi = u * std::f64::consts::TAU;
@@ -431,7 +255,7 @@ struct Sampler {
 impl Sampler {
     /// Whether `count` more surfels fit; remembers when they do not.
     fn reserve(&mut self, count: usize) -> bool {
-        let fits = self.surfels.len().saturating_add(count) as f64 <= MAX_SURFELS_PER_OBJECT;
+        let fits = self.surfels.len().saturating_add(count) <= MAX_SURFELS_PER_OBJECT;
         self.over_budget |= !fits;
         fits
     }
@@ -456,7 +280,7 @@ fn sample_sphere(radius: f64, spacing: f64, out: &mut Sampler) {
             normal,
             area,
             None,
-            UNCOLOURED,
+            DEFAULT_GREY,
         ));
     }
 }
@@ -588,23 +412,23 @@ mod tests {
     #[test]
     fn sampled_areas_sum_to_the_closed_form_surface_areas() {
         let cases = [
-            (Shape::Sphere { radius: 1.5 }, 4.0 * PI * 2.25),
-            (Shape::Quad { size: [2.0, 0.5] }, 1.0),
+            (Primitive::Sphere { radius: 1.5 }, 4.0 * PI * 2.25),
+            (Primitive::Quad { size: [2.0, 0.5] }, 1.0),
             (
-                Shape::Box {
+                Primitive::Box {
                     size: [1.0, 2.0, 3.0],
                 },
                 22.0,
             ),
             (
-                Shape::Cylinder {
+                Primitive::Cylinder {
                     radius: 0.2,
                     length: 3.0,
                 },
                 2.0 * PI * 0.2 * 3.0 + 2.0 * PI * 0.04,
             ),
             (
-                Shape::Torus {
+                Primitive::Torus {
                     major: 1.0,
                     minor: 0.3,
                 },
@@ -612,7 +436,7 @@ mod tests {
             ),
         ];
         for (primitive, expected) in cases {
-            let surfels = sample_primitive(&primitive, 0.02).unwrap();
+            let surfels = primitive.surfels(0.02).unwrap();
             let area = total_area(&surfels);
             assert!(
                 (area - expected).abs() < 2e-3 * expected,
@@ -624,8 +448,8 @@ mod tests {
     #[test]
     fn torus_knot_area_is_tube_circumference_times_curve_length() {
         let (scale, tube) = (0.3, 0.08);
-        let surfels = sample_primitive(
-            &Shape::TorusKnot {
+        let surfels = sample(
+            &Primitive::TorusKnot {
                 p: 2,
                 q: 3,
                 scale,
@@ -660,19 +484,19 @@ mod tests {
     #[test]
     fn normals_are_unit_and_outward() {
         let cases = [
-            Shape::Sphere { radius: 1.0 },
-            Shape::Box {
+            Primitive::Sphere { radius: 1.0 },
+            Primitive::Box {
                 size: [1.0, 1.0, 1.0],
             },
-            Shape::Cylinder {
+            Primitive::Cylinder {
                 radius: 0.5,
                 length: 2.0,
             },
-            Shape::Torus {
+            Primitive::Torus {
                 major: 1.0,
                 minor: 0.25,
             },
-            Shape::TorusKnot {
+            Primitive::TorusKnot {
                 p: 2,
                 q: 3,
                 scale: 0.3,
@@ -680,14 +504,14 @@ mod tests {
             },
         ];
         for primitive in cases {
-            for s in sample_primitive(&primitive, 0.05).unwrap() {
+            for s in primitive.surfels(0.05).unwrap() {
                 assert!((s.normal.length() - 1.0).abs() < 1e-9);
                 let outward = match primitive {
-                    Shape::Torus { major, .. } => {
+                    Primitive::Torus { major, .. } => {
                         s.position - DVec3::new(s.position.x, 0.0, s.position.z).normalize() * major
                     }
-                    Shape::TorusKnot { .. } => continue,
-                    Shape::Cylinder { .. } if s.normal.y.abs() < 0.5 => {
+                    Primitive::TorusKnot { .. } => continue,
+                    Primitive::Cylinder { .. } if s.normal.y.abs() < 0.5 => {
                         DVec3::new(s.position.x, 0.0, s.position.z)
                     }
                     _ => s.position,
@@ -704,8 +528,8 @@ mod tests {
     #[test]
     fn torus_knot_normals_point_away_from_the_core_curve() {
         let tube = 0.08;
-        let surfels = sample_primitive(
-            &Shape::TorusKnot {
+        let surfels = sample(
+            &Primitive::TorusKnot {
                 p: 2,
                 q: 3,
                 scale: 0.3,
@@ -741,23 +565,23 @@ mod tests {
     #[test]
     fn thin_shapes_cannot_slip_past_the_surfel_budget() {
         // Area/spacing² would be 1e6, but the grid is ⌈1000/1e-6⌉ × 1 = 1e9 cells.
-        let sliver = Shape::Quad {
+        let sliver = Primitive::Quad {
             size: [1000.0, 1e-9],
         };
-        assert!(sample_primitive(&sliver, 1e-6).is_none());
-        let thin_torus = Shape::Torus {
+        assert!(sample(&sliver, 1e-6).is_none());
+        let thin_torus = Primitive::Torus {
             major: 1e3,
             minor: 1e-9,
         };
-        assert!(sample_primitive(&thin_torus, 1e-5).is_none());
+        assert!(sample(&thin_torus, 1e-5).is_none());
     }
 
     #[test]
     fn sampling_density_follows_spacing() {
-        let coarse = sample_primitive(&Shape::Sphere { radius: 1.0 }, 0.1)
+        let coarse = sample(&Primitive::Sphere { radius: 1.0 }, 0.1)
             .unwrap()
             .len();
-        let fine = sample_primitive(&Shape::Sphere { radius: 1.0 }, 0.05)
+        let fine = sample(&Primitive::Sphere { radius: 1.0 }, 0.05)
             .unwrap()
             .len();
         assert!((fine as f64 / coarse as f64 - 4.0).abs() < 0.05);

@@ -2,10 +2,13 @@
 //!
 //! Between keyframes translation and scale interpolate linearly and rotation by slerp, so a point's
 //! path is an arc (Guan & Mueller §3.3: "rotations … computing each point's trajectory as the
-//! local path in the global rotation"). Slerp takes the short way round, so keyframes may be at
-//! most 180° apart; the scene loader rejects larger steps.
+//! local path in the global rotation"). Slerp takes the short way round, so consecutive keyframes
+//! must turn less than 180°; [`Motion::new`] rejects larger steps.
 
 use glam::{DAffine3, DMat3, DQuat, DVec3};
+
+use super::{finite, finite3, positive};
+use crate::error::{Error, Result};
 
 /// An object's pose at one instant: world = translation + rotation · (scale · object).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,12 +62,68 @@ pub struct Motion {
 }
 
 impl Motion {
-    /// A motion through `keyframes`, or `None` unless they are non-empty and sorted by time (the
-    /// scene loader checks both first and names the field).
-    #[must_use]
-    pub fn new(keyframes: Vec<Keyframe>) -> Option<Self> {
-        let sorted = keyframes.windows(2).all(|w| w[0].t <= w[1].t);
-        (!keyframes.is_empty() && sorted).then_some(Motion { keyframes })
+    /// A motion through `keyframes` (none: still at the identity pose). Each keyframe's time must
+    /// lie in [0, 1] and increase, its translation be finite, its rotation finite (it is
+    /// normalized) and less than 180° from the previous one, and its scale finite and positive.
+    /// Errors name the keyframe and field, e.g. `keyframe[2].t`.
+    pub fn new(keyframes: Vec<Keyframe>) -> Result<Self> {
+        let mut checked: Vec<Keyframe> = Vec::with_capacity(keyframes.len());
+        for (k, key) in keyframes.into_iter().enumerate() {
+            let field = |name: &str| format!("keyframe[{k}].{name}");
+            let t = finite(&field("t"), key.t)?;
+            if !(0.0..=1.0).contains(&t) {
+                return Err(Error::invalid(
+                    field("t"),
+                    format!("{t} is outside the frame: keyframe times are in [0, 1]"),
+                ));
+            }
+            let rotation = key.pose.rotation;
+            let length = rotation.length();
+            if !(length.is_finite() && length > 0.0) {
+                return Err(Error::invalid(
+                    field("rotate"),
+                    "must be a finite, non-zero quaternion",
+                ));
+            }
+            // A rotation given as a unit quaternion is kept bit for bit.
+            let rotation = if (length - 1.0).abs() <= 1e-12 {
+                rotation
+            } else {
+                rotation / length
+            };
+            if let Some(previous) = checked.last() {
+                if !(t > previous.t) {
+                    return Err(Error::invalid(
+                        field("t"),
+                        format!(
+                            "keyframe times must increase: {t} comes after {}",
+                            previous.t
+                        ),
+                    ));
+                }
+                // A negative dot product of the quaternions means the long way round, which
+                // slerp cannot take.
+                if previous.pose.rotation.dot(rotation) <= 1e-9 {
+                    return Err(Error::invalid(
+                        field("rotate"),
+                        "turns 180° or more from the previous keyframe; rotation is interpolated by slerp, which takes \
+                         the shorter way, so keyframes must be less than 180° apart: add keyframes in between",
+                    ));
+                }
+            }
+            checked.push(Keyframe {
+                t,
+                pose: Pose {
+                    translation: finite3(&field("translate"), key.pose.translation)?,
+                    rotation,
+                    scale: positive(&field("scale"), key.pose.scale)?,
+                },
+            });
+        }
+        if checked.is_empty() {
+            return Ok(Motion::still(Pose::IDENTITY));
+        }
+        Ok(Motion { keyframes: checked })
     }
 
     /// An object that does not move.
@@ -165,13 +224,34 @@ mod tests {
     }
 
     #[test]
-    fn empty_or_unsorted_keyframes_make_no_motion() {
-        assert!(Motion::new(Vec::new()).is_none());
-        let key = |t| Keyframe {
+    fn no_keyframes_hold_still_and_bad_ones_are_named() {
+        assert_eq!(
+            Motion::new(Vec::new()).unwrap(),
+            Motion::still(Pose::IDENTITY)
+        );
+        let key = |t, degrees: f64, scale| Keyframe {
             t,
-            pose: Pose::IDENTITY,
+            pose: Pose {
+                rotation: DQuat::from_rotation_y(degrees.to_radians()),
+                scale,
+                ..Pose::IDENTITY
+            },
         };
-        assert!(Motion::new(vec![key(0.5), key(0.2)]).is_none());
+        let error = |keys: Vec<Keyframe>| Motion::new(keys).unwrap_err().to_string();
+        assert!(error(vec![key(0.5, 0.0, 1.0), key(0.2, 0.0, 1.0)])
+            .starts_with("keyframe[1].t: keyframe times must increase"));
+        assert!(error(vec![key(1.5, 0.0, 1.0)]).starts_with("keyframe[0].t: 1.5 is outside"));
+        assert!(error(vec![key(0.0, 0.0, 1.0), key(1.0, 200.0, 1.0)])
+            .starts_with("keyframe[1].rotate: turns 180° or more"));
+        assert!(error(vec![key(0.0, 0.0, -1.0)]).starts_with("keyframe[0].scale: "));
+        let mut nan = key(0.0, 0.0, 1.0);
+        nan.pose.translation.y = f64::NAN;
+        assert!(error(vec![nan]).starts_with("keyframe[0].translate[1]: "));
+        // A quaternion that is not unit length is normalized.
+        let mut long = key(0.0, 90.0, 1.0);
+        long.pose.rotation *= 2.0;
+        let motion = Motion::new(vec![long]).unwrap();
+        assert!((motion.pose_at(0.0).rotation.length() - 1.0).abs() < 1e-12);
     }
 
     #[test]

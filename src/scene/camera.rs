@@ -5,6 +5,12 @@
 
 use glam::{DAffine3, DMat3, DVec2, DVec3};
 
+use super::{finite3, positive};
+use crate::error::{Error, Result};
+
+/// Largest image side accepted, px.
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
 /// A pinhole camera with its image size.
 #[derive(Clone, Debug)]
 pub struct Camera {
@@ -40,36 +46,68 @@ impl ProjectionJacobian {
 }
 
 impl Camera {
-    /// A camera at `eye` looking at `target`; `fov_y_degrees` is the vertical field of view.
-    pub fn look_at(
+    /// A camera at `eye` looking at `target` with `up` as the image's up direction,
+    /// `fov_y_degrees` of vertical field of view and an image of `width` × `height` pixels; its
+    /// near plane lies at a thousandth of the distance to the target ([`Camera::with_near`] sets
+    /// it). Errors name the field: `eye`, `target`, `up` (not finite; target at the eye; up zero
+    /// or along the view), `fov_y` (outside (0°, 180°)) or `width/height` (outside 1 to
+    /// [`MAX_IMAGE_SIDE`]).
+    pub fn new(
         eye: DVec3,
         target: DVec3,
         up: DVec3,
         fov_y_degrees: f64,
         width: u32,
         height: u32,
-        near: f64,
-    ) -> Self {
+    ) -> Result<Camera> {
+        let eye = finite3("eye", eye)?;
+        let target = finite3("target", target)?;
+        let up = finite3("up", up)?;
+        let forward = target - eye;
+        if !(forward.length() > 0.0) {
+            return Err(Error::invalid("target", "must differ from camera.eye"));
+        }
+        if !(forward.normalize().cross(up).length() > 1e-9) {
+            return Err(Error::invalid(
+                "up",
+                "must not be zero or parallel to the viewing direction",
+            ));
+        }
+        let fov = super::finite("fov_y", fov_y_degrees)?;
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(Error::invalid(
+                "fov_y",
+                format!("{fov}: the vertical field of view is in degrees, between 0 and 180"),
+            ));
+        }
+        check_image_size(width, height)?;
         let view = view_transform(eye, target, up);
-        let focal_px = 0.5 * f64::from(height) / (0.5 * fov_y_degrees.to_radians()).tan();
-        Camera {
+        let focal_px = 0.5 * f64::from(height) / (0.5 * fov.to_radians()).tan();
+        Ok(Camera {
             view,
             eye,
             focal_px,
             width,
             height,
-            near,
-        }
+            near: 1e-3 * forward.length(),
+        })
     }
 
-    /// The same camera with another image size; the vertical field of view is kept.
-    #[must_use]
-    pub fn resized(&self, width: u32, height: u32) -> Self {
+    /// The same camera with its near plane at camera-space depth `near` (finite, positive).
+    pub fn with_near(mut self, near: f64) -> Result<Camera> {
+        self.near = positive("near", near)?;
+        Ok(self)
+    }
+
+    /// The same camera with another image size (each side 1 to [`MAX_IMAGE_SIDE`]); the vertical
+    /// field of view is kept.
+    pub fn resized(&self, width: u32, height: u32) -> Result<Camera> {
+        check_image_size(width, height)?;
         let mut camera = self.clone();
         camera.focal_px *= f64::from(height) / f64::from(self.height);
         camera.width = width;
         camera.height = height;
-        camera
+        Ok(camera)
     }
 
     /// Camera-space point → pixel position and depth (distance along −Z), or `None` when the
@@ -103,6 +141,18 @@ impl Camera {
     }
 }
 
+/// Each side from 1 to [`MAX_IMAGE_SIDE`], or an error naming `width/height`.
+pub fn check_image_size(width: u32, height: u32) -> Result<()> {
+    if (1..=MAX_IMAGE_SIDE).contains(&width) && (1..=MAX_IMAGE_SIDE).contains(&height) {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            "width/height",
+            format!("{width}×{height}: each side must be between 1 and {MAX_IMAGE_SIDE} pixels"),
+        ))
+    }
+}
+
 /// The right-handed world → view transform of a camera at `eye` looking at `target`: the camera
 /// looks down −z, x is right and y is up (the component of `up` across the view direction).
 fn view_transform(eye: DVec3, target: DVec3, up: DVec3) -> DAffine3 {
@@ -124,15 +174,17 @@ mod tests {
     use super::*;
 
     fn camera() -> Camera {
-        Camera::look_at(
+        Camera::new(
             DVec3::new(0.3, 0.2, 4.0),
             DVec3::new(0.0, 0.1, 0.0),
             DVec3::Y,
             40.0,
             320,
             200,
-            0.01,
         )
+        .unwrap()
+        .with_near(0.01)
+        .unwrap()
     }
 
     #[test]
@@ -147,15 +199,17 @@ mod tests {
 
     #[test]
     fn up_is_up_on_screen_and_right_is_right() {
-        let cam = Camera::look_at(
+        let cam = Camera::new(
             DVec3::new(0.0, 0.0, 5.0),
             DVec3::ZERO,
             DVec3::Y,
             60.0,
             100,
             100,
-            0.01,
-        );
+        )
+        .unwrap()
+        .with_near(0.01)
+        .unwrap();
         let up = cam
             .project(cam.view.transform_point3(DVec3::new(0.0, 1.0, 0.0)))
             .unwrap()

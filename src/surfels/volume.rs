@@ -17,17 +17,14 @@
 //! crossings in its tangent plane), which is right cell by cell and sums to the same total, and a
 //! Gaussian shaped after that piece (see `SMOOTHING`).
 
-use std::io::Read;
-use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
-use serde::Deserialize;
 
+use super::{Surfel, DEFAULT_GREY, SIGMA_PER_SPACING};
 use crate::error::{Error, Result};
-use crate::geometry::{Surfel, SIGMA_PER_SPACING};
-use crate::raster::Sym2;
+use crate::math::Sym2;
 
 /// Most voxels a volume may have, 2³¹ (e.g. 2048 × 1024 × 1024): a typo in the dimensions must
 /// not ask for more memory than a workstation has (this is 2 GiB of uint8, 8 GiB of float32).
@@ -37,63 +34,51 @@ pub const MAX_VOXELS: u64 = 1 << 31;
 /// squared extents of the largest volume stay far from overflow.
 pub const SPACING_RANGE: (f64, f64) = (1e-9, 1e9);
 
-/// The type of one voxel; the names are those of scene files and of the data files' names.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum VoxelType {
-    /// Unsigned 8-bit integer.
-    Uint8,
-    /// Unsigned 16-bit integer, little-endian.
-    Uint16,
-    /// Signed 16-bit integer, little-endian.
-    Int16,
-    /// IEEE 754 single precision, little-endian; every value must be finite.
-    Float32,
-}
-
-impl VoxelType {
-    /// Every voxel type, in the order messages list them.
-    pub const ALL: [VoxelType; 4] = [
-        VoxelType::Uint8,
-        VoxelType::Uint16,
-        VoxelType::Int16,
-        VoxelType::Float32,
-    ];
-
-    /// The type called `name` in a scene file (`uint8`, `uint16`, `int16`, `float32`).
-    #[must_use]
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|t| t.name() == name)
-    }
-
-    /// Its name in scene files.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            VoxelType::Uint8 => "uint8",
-            VoxelType::Uint16 => "uint16",
-            VoxelType::Int16 => "int16",
-            VoxelType::Float32 => "float32",
-        }
-    }
-
-    /// Bytes per voxel.
-    #[must_use]
-    pub fn size(self) -> usize {
-        match self {
-            VoxelType::Uint8 => 1,
-            VoxelType::Uint16 | VoxelType::Int16 => 2,
-            VoxelType::Float32 => 4,
-        }
-    }
-}
-
-/// Voxel values in the file's own type, so a uint8 volume takes one byte per voxel in memory.
+/// Voxel values in their own type, so a uint8 volume takes one byte per voxel in memory; x
+/// fastest, then y, then z.
 #[derive(Clone, Debug, PartialEq)]
-enum Samples {
+pub enum Samples {
+    /// Unsigned 8-bit integers.
     Uint8(Vec<u8>),
+    /// Unsigned 16-bit integers.
     Uint16(Vec<u16>),
+    /// Signed 16-bit integers.
     Int16(Vec<i16>),
+    /// Single-precision floats, every one finite.
     Float32(Vec<f32>),
+}
+
+impl Samples {
+    fn len(&self) -> usize {
+        match self {
+            Samples::Uint8(v) => v.len(),
+            Samples::Uint16(v) => v.len(),
+            Samples::Int16(v) => v.len(),
+            Samples::Float32(v) => v.len(),
+        }
+    }
+}
+
+/// The voxel count of a grid of `dimensions`, or an error naming `dimensions` when a side is 0
+/// or there are more than [`MAX_VOXELS`].
+pub fn voxel_count(dimensions: [usize; 3]) -> Result<u64> {
+    let [x, y, z] = dimensions;
+    if dimensions.contains(&0) {
+        return Err(Error::invalid(
+            "dimensions",
+            format!("{x} × {y} × {z}: every dimension must be at least 1"),
+        ));
+    }
+    dimensions
+        .iter()
+        .try_fold(1u64, |product, &n| product.checked_mul(n as u64))
+        .filter(|&n| n <= MAX_VOXELS)
+        .ok_or_else(|| {
+            Error::invalid(
+                "dimensions",
+                format!("{x} × {y} × {z} is more than the limit of {MAX_VOXELS} voxels"),
+            )
+        })
 }
 
 /// A scalar volume: one finite value per voxel on a grid of `dimensions`, x fastest, then y,
@@ -104,169 +89,35 @@ pub struct Volume {
     samples: Samples,
 }
 
-/// Checks `dimensions` and returns the byte count a file of `voxel`s must have.
-fn expected_bytes(path: &Path, dimensions: [usize; 3], voxel: VoxelType) -> Result<u64> {
-    let [x, y, z] = dimensions;
-    if dimensions.contains(&0) {
-        return Err(Error::input(
-            path,
-            "dimensions",
-            format!("{x} × {y} × {z}: every dimension must be at least 1"),
-        ));
-    }
-    let voxels = [x, y, z]
-        .iter()
-        .try_fold(1u64, |product, &n| product.checked_mul(n as u64))
-        .filter(|&n| n <= MAX_VOXELS)
-        .ok_or_else(|| {
-            Error::input(
-                path,
-                "dimensions",
-                format!("{x} × {y} × {z} is more than the limit of {MAX_VOXELS} voxels"),
-            )
-        })?;
-    Ok(voxels * voxel.size() as u64)
-}
-
-/// The error for a file that does not hold exactly the volume the scene describes.
-fn wrong_size(
-    path: &Path,
-    dimensions: [usize; 3],
-    voxel: VoxelType,
-    expected: u64,
-    found: String,
-) -> Error {
-    let [x, y, z] = dimensions;
-    Error::input(
-        path,
-        "file size",
-        format!(
-            "expected {expected} bytes ({x} × {y} × {z} voxels of {}), found {found}: the file \
-             does not match the shape's dimensions and voxel type",
-            voxel.name()
-        ),
-    )
-}
-
 impl Volume {
-    /// Read a raw volume: no header, x fastest, then y, then z, multi-byte types little-endian.
-    /// A path ending in `.gz` is gunzipped on the fly.
-    ///
-    /// Every problem is an error naming the file: a byte count other than the product of the
-    /// dimensions and the voxel size (saying the expected and the found count), a zero dimension
-    /// or more than [`MAX_VOXELS`] voxels, corrupt gzip data, and, for float32, a NaN or infinite
-    /// voxel (the first one, by its (x, y, z) index).
-    pub fn read(path: &Path, dimensions: [usize; 3], voxel: VoxelType) -> Result<Volume> {
-        let expected = expected_bytes(path, dimensions, voxel)?;
-        let metadata = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-        if !metadata.is_file() {
-            return Err(Error::input(path, "file", "not a regular file"));
-        }
-        let bytes = if path.extension().is_some_and(|ext| ext == "gz") {
-            let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-            let mut decoder = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(file));
-            let corrupt = |e: std::io::Error| {
-                Error::input(
-                    path,
-                    "gzip data",
-                    format!("cannot decompress the file: {e}"),
-                )
-            };
-            // Read no more than one byte past the expected size: a hostile file cannot fill
-            // memory, and the rest is only counted for the message.
-            let mut bytes = Vec::new();
-            (&mut decoder)
-                .take(expected + 1)
-                .read_to_end(&mut bytes)
-                .map_err(corrupt)?;
-            if bytes.len() as u64 != expected {
-                let rest = std::io::copy(&mut decoder, &mut std::io::sink()).map_err(corrupt)?;
-                let found = bytes.len() as u64 + rest;
-                return Err(wrong_size(
-                    path,
-                    dimensions,
-                    voxel,
-                    expected,
-                    format!("{found} after decompression"),
-                ));
-            }
-            bytes
-        } else {
-            if metadata.len() != expected {
-                return Err(wrong_size(
-                    path,
-                    dimensions,
-                    voxel,
-                    expected,
-                    metadata.len().to_string(),
-                ));
-            }
-            std::fs::read(path).map_err(|e| Error::io(path, e))?
-        };
-        Volume::decode(bytes, dimensions, voxel, path)
-    }
-
-    /// Same as [`Volume::read`], from uncompressed bytes already in memory; `path` only names
-    /// them in messages.
-    pub fn parse(
-        bytes: &[u8],
-        dimensions: [usize; 3],
-        voxel: VoxelType,
-        path: &Path,
-    ) -> Result<Volume> {
-        Volume::decode(bytes.to_vec(), dimensions, voxel, path)
-    }
-
-    fn decode(
-        bytes: Vec<u8>,
-        dimensions: [usize; 3],
-        voxel: VoxelType,
-        path: &Path,
-    ) -> Result<Volume> {
-        let expected = expected_bytes(path, dimensions, voxel)?;
-        if bytes.len() as u64 != expected {
-            return Err(wrong_size(
-                path,
-                dimensions,
-                voxel,
-                expected,
-                bytes.len().to_string(),
+    /// A volume of `dimensions` voxels holding `samples`. Errors name the field: `dimensions`
+    /// (a side of 0, more than [`MAX_VOXELS`]), `samples` (a count other than the voxels'), or
+    /// `voxel (x, y, z)` (the first float that is NaN or infinite).
+    pub fn new(dimensions: [usize; 3], samples: Samples) -> Result<Volume> {
+        let voxels = voxel_count(dimensions)?;
+        if samples.len() as u64 != voxels {
+            let [x, y, z] = dimensions;
+            return Err(Error::invalid(
+                "samples",
+                format!(
+                    "{} values for {x} × {y} × {z} = {voxels} voxels: give one per voxel",
+                    samples.len()
+                ),
             ));
         }
-        let samples = match voxel {
-            VoxelType::Uint8 => Samples::Uint8(bytes),
-            VoxelType::Uint16 => Samples::Uint16(
-                bytes
-                    .chunks_exact(2)
-                    .map(|b| u16::from_le_bytes([b[0], b[1]]))
-                    .collect(),
-            ),
-            VoxelType::Int16 => Samples::Int16(
-                bytes
-                    .chunks_exact(2)
-                    .map(|b| i16::from_le_bytes([b[0], b[1]]))
-                    .collect(),
-            ),
-            VoxelType::Float32 => {
-                let values: Vec<f32> = bytes
-                    .chunks_exact(4)
-                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                    .collect();
-                if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-                    let [nx, ny, _] = dimensions;
-                    let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-                    return Err(Error::input(
-                        path,
-                        format!("voxel ({x}, {y}, {z})"),
-                        format!(
-                            "{}: a float32 volume must hold finite numbers only",
-                            values[i]
-                        ),
-                    ));
-                }
-                Samples::Float32(values)
+        if let Samples::Float32(values) = &samples {
+            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+                let [nx, ny, _] = dimensions;
+                let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+                return Err(Error::invalid(
+                    format!("voxel ({x}, {y}, {z})"),
+                    format!(
+                        "{}: a float32 volume must hold finite numbers only",
+                        values[i]
+                    ),
+                ));
             }
-        };
+        }
         Ok(Volume {
             dimensions,
             samples,
@@ -298,7 +149,7 @@ impl Volume {
         }
     }
 
-    /// The surfels of the iso-surface (white; the caller colours them), one per cell whose
+    /// The surfels of the iso-surface (light grey), one per cell whose
     /// corners straddle `surface.iso`, in the order of their cells (z, then y, then x), the
     /// same whatever the thread count. `None` when there would be more than `max_surfels`.
     ///
@@ -322,6 +173,65 @@ impl Volume {
             Samples::Float32(v) => Grid::new(v, self.dimensions, surface).surfels(max_surfels),
         }
     }
+}
+
+/// The surfels of `volume`'s iso-surface (light grey; see [`Volume::iso_surfels`]), at most
+/// `max_surfels`. Errors name the field: `spacing[i]` (outside [`SPACING_RANGE`]), `iso` (not
+/// finite, or crossing no cell), `stride` (0, more than the smallest dimension less one, or so
+/// small that the surface has more than `max_surfels` surfels).
+pub fn from_volume(
+    volume: &Volume,
+    surface: &IsoSurface,
+    max_surfels: usize,
+) -> Result<Vec<Surfel>> {
+    for (axis, s) in surface.spacing.to_array().into_iter().enumerate() {
+        let (lo, hi) = SPACING_RANGE;
+        if !(s >= lo && s <= hi) {
+            return Err(Error::invalid(
+                format!("spacing[{axis}]"),
+                format!("{s}: the distance between voxels must be between {lo:e} and {hi:e}"),
+            ));
+        }
+    }
+    if !surface.iso.is_finite() {
+        return Err(Error::invalid(
+            "iso",
+            format!("{} is not a finite number", surface.iso),
+        ));
+    }
+    let stride = surface.stride;
+    let widest = volume.dimensions.iter().min().map_or(1, |&n| n - 1);
+    if !(1..=widest).contains(&stride) {
+        return Err(Error::invalid(
+            "stride",
+            format!(
+                "{stride}: use a whole number from 1 (every voxel) to {widest} (the smallest \
+                 dimension less one)"
+            ),
+        ));
+    }
+    let surfels = volume.iso_surfels(surface, max_surfels).ok_or_else(|| {
+        Error::invalid(
+            "stride",
+            format!(
+                "the surface at iso = {} has more than {max_surfels} surfels at stride \
+                 {stride}: use a larger stride",
+                surface.iso
+            ),
+        )
+    })?;
+    if surfels.is_empty() {
+        let (lo, hi) = volume.value_range();
+        return Err(Error::invalid(
+            "iso",
+            format!(
+                "the surface at {} crosses no cell: the volume's values run from {lo} to \
+                 {hi}, pick one in between",
+                surface.iso
+            ),
+        ));
+    }
+    Ok(surfels)
 }
 
 /// Which iso-surface to extract and how the voxel grid sits in object space.
@@ -424,29 +334,6 @@ impl Piece {
             covariance,
         }
     }
-}
-
-/// The principal axes of a covariance, each scaled to its standard deviation.
-pub(crate) fn principal_axes(c: Sym2) -> (DVec2, DVec2) {
-    let mean = 0.5 * (c.xx + c.yy);
-    let spread = (0.25 * (c.xx - c.yy).powi(2) + c.xy * c.xy).sqrt();
-    let (major, minor) = (mean + spread, (mean - spread).max(0.0));
-    let direction = if spread > 0.0 {
-        // (c.xy, major − c.xx) and (major − c.yy, c.xy) both solve the eigen-equation; take the
-        // longer, which is never the zero vector.
-        let (p, q) = (
-            DVec2::new(c.xy, major - c.xx),
-            DVec2::new(major - c.yy, c.xy),
-        );
-        if p.length_squared() > q.length_squared() {
-            p.normalize()
-        } else {
-            q.normalize()
-        }
-    } else {
-        DVec2::X
-    };
-    (direction * major.sqrt(), direction.perp() * minor.sqrt())
 }
 
 /// The samples used for one extraction (every `stride`-th voxel) and where they sit.
@@ -576,7 +463,7 @@ impl<'a, T: Copy + Into<f64> + Sync> Grid<'a, T> {
             self.cell.x * self.cell.z,
             self.cell.x * self.cell.y,
         ));
-        let (a, b) = principal_axes(piece.covariance + Sym2::isotropic(SMOOTHING * shadow));
+        let (a, b) = (piece.covariance + Sym2::isotropic(SMOOTHING * shadow)).principal_axes();
         let at_local = self.origin + (DVec3::from_array(c.map(|i| i as f64)) + local) * self.cell;
         Some(Surfel {
             position: at_local + u * piece.centroid.x + v * piece.centroid.y,
@@ -584,147 +471,28 @@ impl<'a, T: Copy + Into<f64> + Sync> Grid<'a, T> {
             axis_u: u * a.x + v * a.y,
             axis_v: u * b.x + v * b.y,
             area: piece.area,
-            colour: [1.0; 3],
+            colour: DEFAULT_GREY,
         })
     }
 }
 
-/// A volume shape as a scene file gives it (`shape = { type = "volume", … }`), before checking.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct VolumeShape {
-    /// The raw file (`.gz` for gzip), relative to the scene file.
-    pub path: PathBuf,
-    /// Voxels along x, y and z.
-    pub dimensions: [i64; 3],
-    /// Voxel type: `uint8`, `uint16`, `int16` or `float32`.
-    pub voxel: String,
-    /// Distance between voxel centres along x, y and z in object units (default [1, 1, 1]).
-    pub spacing: Option<[f64; 3]>,
-    /// The iso-value; the surface encloses the values above it.
-    pub iso: f64,
-    /// Use every `stride`-th voxel along each axis (default 1).
-    pub stride: Option<i64>,
-}
-
-impl VolumeShape {
-    /// Check every field, read the file and extract the iso-surface into white surfels (at most
-    /// `max_surfels`). `file` names the scene in messages, `base` anchors the relative path,
-    /// `field` is where the shape sits in the scene (e.g. `object[2].shape`).
-    pub fn surfels(
-        &self,
-        file: &Path,
-        base: &Path,
-        field: &str,
-        max_surfels: usize,
-    ) -> Result<Vec<Surfel>> {
-        let voxel = VoxelType::from_name(&self.voxel).ok_or_else(|| {
-            let names: Vec<String> = VoxelType::ALL
-                .iter()
-                .map(|t| format!("\"{}\"", t.name()))
-                .collect();
-            Error::input(
-                file,
-                format!("{field}.voxel"),
-                format!("\"{}\": use one of {}", self.voxel, names.join(", ")),
-            )
-        })?;
-        let mut dimensions = [0usize; 3];
-        for (axis, &n) in self.dimensions.iter().enumerate() {
-            if !(2..=MAX_VOXELS as i64).contains(&n) {
-                return Err(Error::input(
-                    file,
-                    format!("{field}.dimensions[{axis}]"),
-                    format!("{n}: a volume needs at least 2 voxels along each axis"),
-                ));
-            }
-            dimensions[axis] = n as usize;
-        }
-        let voxels = dimensions.iter().map(|&n| n as u128).product::<u128>();
-        if voxels > u128::from(MAX_VOXELS) {
-            let [x, y, z] = dimensions;
-            return Err(Error::input(
-                file,
-                format!("{field}.dimensions"),
-                format!("{x} × {y} × {z} = {voxels} voxels is more than the limit of {MAX_VOXELS}"),
-            ));
-        }
-        let mut spacing = DVec3::ONE;
-        for (axis, &s) in self.spacing.iter().flatten().enumerate() {
-            let (lo, hi) = SPACING_RANGE;
-            if !(s >= lo && s <= hi) {
-                return Err(Error::input(
-                    file,
-                    format!("{field}.spacing[{axis}]"),
-                    format!("{s}: the distance between voxels must be between {lo:e} and {hi:e}"),
-                ));
-            }
-            spacing[axis] = s;
-        }
-        if !self.iso.is_finite() {
-            return Err(Error::input(
-                file,
-                format!("{field}.iso"),
-                format!("{} is not a finite number", self.iso),
-            ));
-        }
-        let stride = self.stride.unwrap_or(1);
-        let widest = dimensions.iter().min().map_or(1, |&n| n - 1);
-        if !(1..=widest as i64).contains(&stride) {
-            return Err(Error::input(
-                file,
-                format!("{field}.stride"),
-                format!(
-                    "{stride}: use a whole number from 1 (every voxel) to {widest} (the smallest \
-                     dimension less one)"
-                ),
-            ));
-        }
-        let volume = Volume::read(&base.join(&self.path), dimensions, voxel)?;
-        let surface = IsoSurface {
-            iso: self.iso,
-            spacing,
-            stride: stride as usize,
-        };
-        let surfels = volume.iso_surfels(&surface, max_surfels).ok_or_else(|| {
-            Error::input(
-                file,
-                format!("{field}.stride"),
-                format!(
-                    "the surface at iso = {} has more than {max_surfels} surfels at stride \
-                     {stride}: use a larger stride",
-                    self.iso
-                ),
-            )
-        })?;
-        if surfels.is_empty() {
-            let (lo, hi) = volume.value_range();
-            return Err(Error::input(
-                file,
-                format!("{field}.iso"),
-                format!(
-                    "the surface at {} crosses no cell: the volume's values run from {lo} to \
-                     {hi}, pick one in between",
-                    self.iso
-                ),
-            ));
-        }
-        Ok(surfels)
-    }
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::io::raw_volume::VoxelType;
     use std::f64::consts::PI;
     use std::io::Write;
+    use std::path::{Path, PathBuf};
 
     /// Radius of the test spheres, in voxels: large against a cell, so that curvature biases
     /// positions and areas by well under a percent, and small enough to test quickly.
     const R: f64 = 18.0;
 
     /// The object-space positions of a volume's voxels, x fastest.
-    fn voxel_positions(dimensions: [usize; 3], spacing: DVec3) -> impl Iterator<Item = DVec3> {
+    pub(crate) fn voxel_positions(
+        dimensions: [usize; 3],
+        spacing: DVec3,
+    ) -> impl Iterator<Item = DVec3> {
         let centre = DVec3::from_array(dimensions.map(|n| (n - 1) as f64)) * spacing * 0.5;
         (0..dimensions[2]).flat_map(move |z| {
             (0..dimensions[1]).flat_map(move |y| {
@@ -735,7 +503,7 @@ mod tests {
     }
 
     /// The bytes of a float32 volume of `field` sampled at its voxels.
-    fn float_bytes(
+    pub(crate) fn float_bytes(
         dimensions: [usize; 3],
         spacing: DVec3,
         field: impl Fn(DVec3) -> f64,
@@ -780,13 +548,13 @@ mod tests {
     }
 
     /// A fresh folder for one test's files.
-    fn workdir(name: &str) -> PathBuf {
+    pub(crate) fn workdir(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("streak-volume-{}-{name}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         dir
     }
 
-    fn gzip(bytes: &[u8]) -> Vec<u8> {
+    pub(crate) fn gzip(bytes: &[u8]) -> Vec<u8> {
         let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         encoder.write_all(bytes).unwrap();
         encoder.finish().unwrap()
@@ -830,7 +598,7 @@ mod tests {
         assert_sphere(&surfels, R, 0.05);
         for s in &surfels {
             assert!((s.normal.length() - 1.0).abs() < 1e-12);
-            assert_eq!(s.colour, [1.0; 3]);
+            assert_eq!(s.colour, DEFAULT_GREY);
         }
     }
 
@@ -912,38 +680,6 @@ mod tests {
     }
 
     #[test]
-    fn principal_axes_rebuild_the_covariance() {
-        for c in [
-            Sym2 {
-                xx: 2.0,
-                xy: 0.7,
-                yy: 0.5,
-            },
-            Sym2 {
-                xx: 0.5,
-                xy: -0.7,
-                yy: 2.0,
-            },
-            Sym2::isotropic(0.3),
-            Sym2 {
-                xx: 1.0,
-                xy: 0.0,
-                yy: 0.0,
-            },
-        ] {
-            let (a, b) = principal_axes(c);
-            let rebuilt = Sym2::outer(a) + Sym2::outer(b);
-            assert!(
-                (rebuilt.xx - c.xx).abs() < 1e-12
-                    && (rebuilt.xy - c.xy).abs() < 1e-12
-                    && (rebuilt.yy - c.yy).abs() < 1e-12,
-                "{c:?}"
-            );
-            assert!(a.dot(b).abs() < 1e-12 && a.length() >= b.length());
-        }
-    }
-
-    #[test]
     fn a_constant_volume_has_no_surface() {
         let volume = float_volume([8, 9, 10], DVec3::ONE, |_| 3.0);
         for iso in [2.0, 3.0, 4.0] {
@@ -1010,189 +746,5 @@ mod tests {
         ] {
             assert!(extract(&volume, iso, spacing, stride).is_empty());
         }
-    }
-
-    #[test]
-    fn voxel_types_decode_little_endian() {
-        let path = Path::new("t.raw");
-        let int16 = [-300i16, 5, 7, 9, 11, 13, 15, 1000];
-        let bytes: Vec<u8> = int16.iter().flat_map(|v| v.to_le_bytes()).collect();
-        let volume = Volume::parse(&bytes, [2; 3], VoxelType::Int16, path).unwrap();
-        assert_eq!(volume.value_range(), (-300.0, 1000.0));
-        let volume = Volume::parse(&bytes, [2; 3], VoxelType::Uint16, path).unwrap();
-        assert_eq!(volume.value_range(), (5.0, 65236.0));
-        assert_eq!(VoxelType::from_name("int32"), None);
-        for t in VoxelType::ALL {
-            assert_eq!(VoxelType::from_name(t.name()), Some(t));
-        }
-    }
-
-    #[test]
-    fn files_of_the_wrong_size_are_rejected_with_both_counts() {
-        let dir = workdir("size");
-        let bytes = vec![7u8; 4 * 5 * 6 * 2 - 1];
-        std::fs::write(dir.join("short.raw"), &bytes).unwrap();
-        std::fs::write(dir.join("short.raw.gz"), gzip(&bytes)).unwrap();
-        std::fs::write(
-            dir.join("long.raw.gz"),
-            gzip(&[bytes.clone(), vec![0; 10]].concat()),
-        )
-        .unwrap();
-        for (file, found) in [
-            ("short.raw", "found 239"),
-            ("short.raw.gz", "found 239 after decompression"),
-            ("long.raw.gz", "found 249 after decompression"),
-        ] {
-            let message = Volume::read(&dir.join(file), [4, 5, 6], VoxelType::Int16)
-                .unwrap_err()
-                .to_string();
-            assert!(
-                message.contains(file)
-                    && message.contains("expected 240 bytes")
-                    && message.contains(found),
-                "{message}"
-            );
-        }
-        std::fs::write(dir.join("garbage.raw.gz"), b"not gzip at all").unwrap();
-        let message = Volume::read(&dir.join("garbage.raw.gz"), [2; 3], VoxelType::Uint8)
-            .unwrap_err()
-            .to_string();
-        assert!(message.contains("gzip data"), "{message}");
-    }
-
-    #[test]
-    fn non_finite_float_voxels_are_named_by_index() {
-        let dimensions = [6, 7, 8];
-        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
-            let bytes = float_bytes(dimensions, DVec3::ONE, |p| {
-                if p == DVec3::new(0.5, 1.0, 1.5) {
-                    bad
-                } else {
-                    1.0
-                }
-            });
-            let message = Volume::parse(&bytes, dimensions, VoxelType::Float32, Path::new("v.raw"))
-                .unwrap_err()
-                .to_string();
-            assert!(message.contains("v.raw: voxel (3, 4, 5)"), "{message}");
-        }
-    }
-
-    #[test]
-    fn zero_and_oversized_dimensions_are_rejected() {
-        let path = Path::new("v.raw");
-        let message = Volume::parse(&[], [4, 0, 4], VoxelType::Uint8, path)
-            .unwrap_err()
-            .to_string();
-        assert!(
-            message.contains("dimensions") && message.contains("at least 1"),
-            "{message}"
-        );
-        let message = Volume::read(path, [1 << 20, 1 << 20, 1 << 20], VoxelType::Uint8)
-            .unwrap_err()
-            .to_string();
-        assert!(message.contains("limit of 2147483648 voxels"), "{message}");
-        let message = Volume::read(path, [usize::MAX; 3], VoxelType::Float32)
-            .unwrap_err()
-            .to_string();
-        assert!(message.contains("limit"), "{message}");
-    }
-
-    /// A scene's volume shape over a small uint8 sphere file.
-    fn shape() -> (VolumeShape, PathBuf) {
-        let dir = workdir("shape");
-        let bytes: Vec<u8> = voxel_positions([16; 3], DVec3::ONE)
-            .map(|p| (100.0 + 8.0 * (6.0 - p.length())).clamp(0.0, 255.0) as u8)
-            .collect();
-        std::fs::write(dir.join("ball.raw"), bytes).unwrap();
-        let shape = VolumeShape {
-            path: "ball.raw".into(),
-            dimensions: [16; 3],
-            voxel: "uint8".into(),
-            spacing: None,
-            iso: 100.0,
-            stride: None,
-        };
-        (shape, dir)
-    }
-
-    #[test]
-    fn shape_fields_are_checked_by_name() {
-        let (good, dir) = shape();
-        let scene = Path::new("scene.toml");
-        let surfels = good
-            .surfels(scene, &dir, "object[0].shape", 1_000_000)
-            .unwrap();
-        assert!(surfels.len() > 100);
-        type Edit = fn(&mut VolumeShape);
-        let cases: [(Edit, &str, &str); 10] = [
-            (
-                |s| s.voxel = "int32".into(),
-                "object[0].shape.voxel",
-                "use one of \"uint8\"",
-            ),
-            (
-                |s| s.dimensions[2] = 0,
-                "object[0].shape.dimensions[2]",
-                "at least 2",
-            ),
-            (
-                |s| s.dimensions[0] = -16,
-                "object[0].shape.dimensions[0]",
-                "at least 2",
-            ),
-            (
-                |s| s.dimensions = [1 << 20; 3],
-                "object[0].shape.dimensions",
-                "limit of 2147483648",
-            ),
-            (
-                |s| s.spacing = Some([1.0, -1.0, 1.0]),
-                "object[0].shape.spacing[1]",
-                "between",
-            ),
-            (
-                |s| s.spacing = Some([1.0, 1.0, f64::NAN]),
-                "object[0].shape.spacing[2]",
-                "between",
-            ),
-            (
-                |s| s.iso = f64::INFINITY,
-                "object[0].shape.iso",
-                "not a finite number",
-            ),
-            (
-                |s| s.iso = 300.0,
-                "object[0].shape.iso",
-                "values run from 44 to 141",
-            ),
-            (
-                |s| s.stride = Some(0),
-                "object[0].shape.stride",
-                "from 1 (every voxel) to 15",
-            ),
-            (
-                |s| s.stride = Some(16),
-                "object[0].shape.stride",
-                "from 1 (every voxel) to 15",
-            ),
-        ];
-        for (change, field, hint) in cases {
-            let mut bad = good.clone();
-            change(&mut bad);
-            let message = bad
-                .surfels(scene, &dir, "object[0].shape", 1_000_000)
-                .unwrap_err()
-                .to_string();
-            assert!(
-                message.starts_with(&format!("scene.toml: {field}: ")) && message.contains(hint),
-                "{message}"
-            );
-        }
-        let message = good
-            .surfels(scene, &dir, "object[0].shape", 100)
-            .unwrap_err()
-            .to_string();
-        assert!(message.contains("object[0].shape.stride") && message.contains("larger stride"));
     }
 }

@@ -32,22 +32,14 @@
 //! do not.
 
 use std::num::NonZeroUsize;
-use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
-use serde::Deserialize;
 
+use super::{Surfel, DEFAULT_GREY, MAX_SURFELS_PER_OBJECT};
 use crate::error::{Error, Result};
-use crate::geometry::Surfel;
-use crate::pointcloud;
-use crate::raster::Sym2;
-use crate::volume::principal_axes;
-
-/// Largest mesh file read, after decompression: 2 GiB holds tens of millions of triangles, and a
-/// bound keeps a corrupt or hostile `.gz` from exhausting memory.
-pub const MAX_MESH_BYTES: u64 = 2 << 30;
+use crate::math::{outer3, Sym2};
 
 /// A triangle mesh: vertex positions and triangles as indices into them, each wound
 /// counter-clockwise seen from the side its normal points to.
@@ -59,35 +51,10 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-/// The file formats a mesh is read from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MeshFormat {
-    /// Wavefront OBJ.
-    Obj,
-    /// PLY with a face element.
-    Ply,
-}
-
-impl MeshFormat {
-    /// The format a file name says, ignoring case and a trailing `.gz`: `.obj` or `.ply`.
-    #[must_use]
-    pub fn of(path: &Path) -> Option<MeshFormat> {
-        let name = path.file_name()?.to_str()?.to_ascii_lowercase();
-        let name = name.strip_suffix(".gz").unwrap_or(&name);
-        if name.ends_with(".obj") {
-            Some(MeshFormat::Obj)
-        } else if name.ends_with(".ply") {
-            Some(MeshFormat::Ply)
-        } else {
-            None
-        }
-    }
-}
-
 /// Surfels sampled from a mesh, with what was left out.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshSamples {
-    /// The surfels (white; the caller colours them), one per piece.
+    /// The surfels (light grey), one per piece.
     pub surfels: Vec<Surfel>,
     /// Area of the surface the surfels stand for, which their areas add up to: that of the
     /// triangles less the degenerate and the isolated ones.
@@ -103,42 +70,8 @@ pub struct MeshSamples {
 }
 
 impl Mesh {
-    /// Read an OBJ or PLY mesh, as its name says (`.obj`, `.ply`, either optionally `.gz`, which
-    /// is gunzipped on the fly). See [`parse_obj`] and [`pointcloud::parse_ply_mesh`] for what is
-    /// read; a file with no faces is an error too.
-    pub fn read(path: &Path) -> Result<Mesh> {
-        let format = MeshFormat::of(path).ok_or_else(|| {
-            Error::input(
-                path,
-                "file name",
-                "a mesh must be an .obj or a .ply file (optionally gzipped, .obj.gz or .ply.gz)",
-            )
-        })?;
-        Mesh::parse(&pointcloud::read_file(path, MAX_MESH_BYTES)?, format, path)
-    }
-
-    /// Same as [`Mesh::read`], from uncompressed bytes already in memory; `path` only names them
-    /// in messages.
-    pub fn parse(bytes: &[u8], format: MeshFormat, path: &Path) -> Result<Mesh> {
-        let mesh = match format {
-            MeshFormat::Obj => parse_obj(bytes, path)?,
-            MeshFormat::Ply => pointcloud::parse_ply_mesh(bytes, path)?,
-        };
-        if mesh.triangles.is_empty() {
-            return Err(Error::input(
-                path,
-                "faces",
-                format!(
-                    "the file has {} vertices but no faces: a mesh needs triangles or polygons",
-                    mesh.positions.len()
-                ),
-            ));
-        }
-        Ok(mesh)
-    }
-
     /// The corners of triangle `t`, or `None` when an index is past the positions.
-    fn corners(&self, t: [u32; 3]) -> Option<[DVec3; 3]> {
+    pub(crate) fn corners(&self, t: [u32; 3]) -> Option<[DVec3; 3]> {
         let corner = |i: u32| self.positions.get(i as usize).copied();
         Some([corner(t[0])?, corner(t[1])?, corner(t[2])?])
     }
@@ -234,6 +167,39 @@ impl Mesh {
             .collect();
         samples
     }
+}
+
+/// Surfels sampled from `mesh`'s surface (see the module notes), light grey, `samples` of them:
+/// moved so that the centre of the mesh's bounding box is the origin when `centre` is true. An
+/// error names `samples` (0 or more than [`MAX_SURFELS_PER_OBJECT`]) or `faces` (every triangle
+/// degenerate: no surface to sample).
+pub fn from_mesh(mesh: &Mesh, samples: usize, centre: bool) -> Result<Vec<Surfel>> {
+    if !(1..=MAX_SURFELS_PER_OBJECT).contains(&samples) {
+        return Err(Error::invalid(
+            "samples",
+            format!(
+                "{samples}: the number of surfels must be between 1 and {MAX_SURFELS_PER_OBJECT}"
+            ),
+        ));
+    }
+    let mut sampled = mesh.sample(samples);
+    if sampled.surfels.is_empty() {
+        return Err(Error::invalid(
+            "faces",
+            format!(
+                "all {} triangles are degenerate (zero area): there is no surface to sample",
+                mesh.triangles.len()
+            ),
+        ));
+    }
+    let offset = match (centre, mesh.bounds()) {
+        (true, Some((lo, hi))) => 0.5 * (lo + hi),
+        _ => DVec3::ZERO,
+    };
+    for s in &mut sampled.surfels {
+        s.position -= offset;
+    }
+    Ok(sampled.surfels)
 }
 
 /// Sorts faces along a Morton (Z-order) curve through their centroids, 21 bits per axis of the
@@ -356,7 +322,7 @@ impl Moments {
         // offsets dᵢ from it.
         let covariance = corners
             .iter()
-            .map(|&p| outer(p - centroid))
+            .map(|&p| outer3(p - centroid))
             .fold(DMat3::ZERO, |sum, m| sum + m)
             * (1.0 / 12.0);
         Moments {
@@ -376,7 +342,7 @@ impl Moments {
         let (w, v) = (self.area / total, other.area / total);
         let centroid = self.centroid * w + other.centroid * v;
         let (d, e) = (self.centroid - centroid, other.centroid - centroid);
-        self.covariance = (self.covariance + outer(d)) * w + (other.covariance + outer(e)) * v;
+        self.covariance = (self.covariance + outer3(d)) * w + (other.covariance + outer3(e)) * v;
         self.centroid = centroid;
         self.area = total;
         self.normal += other.normal;
@@ -394,14 +360,14 @@ impl Moments {
             xy: u.dot(c * v),
             yy: v.dot(c * v),
         };
-        let (a, b) = principal_axes(spread + smoothing);
+        let (a, b) = (spread + smoothing).principal_axes();
         Surfel {
             position: self.centroid,
             normal,
             axis_u: u * a.x + v * a.y,
             axis_v: u * b.x + v * b.y,
             area: self.area,
-            colour: [1.0; 3],
+            colour: DEFAULT_GREY,
         }
     }
 }
@@ -427,211 +393,12 @@ fn split(corners: [DVec3; 3], normal: DVec3, area: f64, pieces: usize, out: &mut
     split([a, m, c], normal, area * (1.0 - share), pieces - first, out);
 }
 
-/// v vᵀ.
-fn outer(v: DVec3) -> DMat3 {
-    DMat3::from_cols(v * v.x, v * v.y, v * v.z)
-}
-
-/// A mesh from Wavefront OBJ bytes already in memory (uncompressed; `path` only names them in
-/// messages). Reads `v x y z` (a fourth number or vertex colours after it are ignored) and faces
-/// `f` whose corners are `v`, `v/vt`, `v/vt/vn` or `v//vn`, counted from 1, or back from the
-/// latest vertex when negative (−1 is the latest); a polygon is fan-triangulated around its
-/// first corner. Comments (`#` to the end of the line) and every other statement (`vn`, `vt`,
-/// `o`, `g`, `s`, `usemtl`, `l`, …) are skipped.
-///
-/// Every problem is an [`Error::Input`] naming the file and the line: a coordinate missing, not a
-/// number or not finite, a face of fewer than 3 corners, a corner that is not a number, index 0,
-/// or an index past the vertices the file defines.
-pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<Mesh> {
-    let mut mesh = Mesh::default();
-    // The largest positive index met and its line: faces may name vertices defined further down,
-    // so the range check waits for the end of the file.
-    let mut largest: Option<(u64, usize)> = None;
-    let mut corners: Vec<u32> = Vec::new();
-    for (number, raw_line) in bytes.split(|&b| b == b'\n').enumerate() {
-        let line = number + 1;
-        let error = |message: String| Error::input(path, format!("line {line}"), message);
-        let text = raw_line.split(|&b| b == b'#').next().unwrap_or_default();
-        let mut words = text
-            .split(u8::is_ascii_whitespace)
-            .filter(|word| !word.is_empty())
-            .map(String::from_utf8_lossy);
-        match words.next().as_deref() {
-            Some("v") => {
-                let mut xyz = [0.0; 3];
-                for (value, axis) in xyz.iter_mut().zip(["x", "y", "z"]) {
-                    let word = words.next().ok_or_else(|| {
-                        error(format!("vertex without {axis}: expected `v x y z`"))
-                    })?;
-                    *value = word
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|v| v.is_finite())
-                        .ok_or_else(|| {
-                            error(format!(
-                                "vertex {axis} is `{word}`; every coordinate must be a finite \
-                                 number"
-                            ))
-                        })?;
-                }
-                if mesh.positions.len() >= u32::MAX as usize {
-                    return Err(error(format!(
-                        "{} vertices or more: too many for one mesh",
-                        u32::MAX
-                    )));
-                }
-                mesh.positions.push(DVec3::from_array(xyz));
-            }
-            Some("f") => {
-                corners.clear();
-                for word in words {
-                    let reference = word.split('/').next().unwrap_or_default();
-                    let index = reference.parse::<i64>().map_err(|_| {
-                        error(format!(
-                            "face corner `{word}` is not a vertex reference (`v`, `v/vt`, \
-                             `v/vt/vn` or `v//vn`, whole numbers)"
-                        ))
-                    })?;
-                    let defined = mesh.positions.len() as u64;
-                    let resolved = match index {
-                        0 => {
-                            return Err(error(
-                                "vertex index 0: OBJ counts vertices from 1 (or back from −1)"
-                                    .into(),
-                            ))
-                        }
-                        i if i > 0 => {
-                            let i = i.unsigned_abs() - 1;
-                            if largest.is_none_or(|(most, _)| i > most) {
-                                largest = Some((i, line));
-                            }
-                            i
-                        }
-                        i => defined.checked_sub(i.unsigned_abs()).ok_or_else(|| {
-                            error(format!(
-                                "vertex index {i} counts back past the first vertex: {defined} \
-                                 are defined above this line"
-                            ))
-                        })?,
-                    };
-                    // Past u32 it cannot be a vertex either; the range check at the end says so.
-                    corners.push(u32::try_from(resolved).unwrap_or(u32::MAX));
-                }
-                if corners.len() < 3 {
-                    return Err(error(format!(
-                        "a face of {} corners: a face needs at least 3",
-                        corners.len()
-                    )));
-                }
-                // A fan around the first corner keeps the polygon's winding in every triangle.
-                mesh.triangles.extend(
-                    (1..corners.len() - 1).map(|k| [corners[0], corners[k], corners[k + 1]]),
-                );
-            }
-            _ => {}
-        }
-    }
-    let defined = mesh.positions.len() as u64;
-    if let Some((index, line)) = largest.filter(|&(index, _)| index >= defined) {
-        return Err(Error::input(
-            path,
-            format!("line {line}"),
-            format!(
-                "vertex index {} is out of range: the file defines {defined} vertices",
-                index + 1
-            ),
-        ));
-    }
-    Ok(mesh)
-}
-
-/// A mesh shape as a scene file gives it (`shape = { type = "mesh", … }`), before checking.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct MeshShape {
-    /// The OBJ or PLY file (optionally `.gz`), relative to the scene file.
-    pub path: PathBuf,
-    /// How many surfels to sample the surface into.
-    pub samples: i64,
-    /// Whether to move the mesh so that the centre of its bounding box is the object's origin
-    /// (default true); false keeps the file's coordinates.
-    pub centre: Option<bool>,
-}
-
-impl MeshShape {
-    /// Check every field, read the file and sample its surface into white surfels (at most
-    /// `max_surfels`). `file` names the scene in messages, `base` anchors the relative path,
-    /// `field` is where the shape sits in the scene (e.g. `object[2].shape`).
-    pub fn surfels(
-        &self,
-        file: &Path,
-        base: &Path,
-        field: &str,
-        max_surfels: usize,
-    ) -> Result<Vec<Surfel>> {
-        let count = usize::try_from(self.samples)
-            .ok()
-            .filter(|n| (1..=max_surfels).contains(n))
-            .ok_or_else(|| {
-                Error::input(
-                    file,
-                    format!("{field}.samples"),
-                    format!(
-                        "{}: the number of surfels must be between 1 and {max_surfels}",
-                        self.samples
-                    ),
-                )
-            })?;
-        let path = base.join(&self.path);
-        let mesh = Mesh::read(&path)?;
-        let mut sampled = mesh.sample(count);
-        if sampled.surfels.is_empty() {
-            return Err(Error::input(
-                &path,
-                "faces",
-                format!(
-                    "all {} triangles are degenerate (zero area): there is no surface to sample",
-                    mesh.triangles.len()
-                ),
-            ));
-        }
-        if let (true, Some((lo, hi))) = (self.centre.unwrap_or(true), mesh.bounds()) {
-            let centre = 0.5 * (lo + hi);
-            for s in &mut sampled.surfels {
-                s.position -= centre;
-            }
-        }
-        Ok(sampled.surfels)
-    }
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
-    use std::io::Write;
-
-    const BAD: &str = "bad.obj";
-
-    fn obj(text: &str) -> Result<Mesh> {
-        parse_obj(text.as_bytes(), Path::new(BAD))
-    }
-
-    /// Parses `text`, expecting an error at `line`; returns the message.
-    fn obj_error(text: &str, line: usize) -> String {
-        let message = match obj(text) {
-            Ok(mesh) => panic!("expected an error, got {} triangles", mesh.triangles.len()),
-            Err(error) => error.to_string(),
-        };
-        let field = format!("{BAD}: line {line}: ");
-        assert!(
-            message.starts_with(&field),
-            "`{message}` should start with `{field}`"
-        );
-        message
-    }
 
     /// A unit square in the xy plane (facing +z) cut into two triangles, `size` on a side.
-    fn square(size: f64) -> Mesh {
+    pub(crate) fn square(size: f64) -> Mesh {
         let positions = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
             .map(|[x, y]| DVec3::new(x, y, 0.0) * size)
             .to_vec();
@@ -711,157 +478,6 @@ mod tests {
 
     fn surfel_area(samples: &MeshSamples) -> f64 {
         samples.surfels.iter().map(|s| s.area).sum()
-    }
-
-    #[test]
-    fn obj_reads_every_face_form() {
-        let text = "# a comment\r\n\
-            mtllib box.mtl\n\
-            o square\n\
-            v 0 0 0\n\
-            v 1 0 0 1.0\n\
-            v\t1 1 0 0.5 0.5 0.5\n\
-            v 0 1 0\n\
-            vt 0 0\nvt 1 0\nvt 1 1\n\
-            vn 0 0 1\n\
-            g sides\ns off\nusemtl grey\n\
-            f 1 2 3\n\
-            f 1/1 2/2 3/3  # trailing comment\n\
-            f 1/1/1 2/2/1 3/3/1\r\n\
-            f 1//1 2//1 3//1\n\
-            f -4 -3 -2\n\
-            f 1 2 3 4\n\
-            l 1 2\n";
-        let mesh = obj(text).unwrap();
-        assert_eq!(mesh.positions.len(), 4);
-        assert_eq!(mesh.positions[2], DVec3::new(1.0, 1.0, 0.0));
-        let mut expected = vec![[0, 1, 2]; 5];
-        expected.extend([[0, 1, 2], [0, 2, 3]]);
-        assert_eq!(mesh.triangles, expected);
-    }
-
-    #[test]
-    fn obj_faces_may_name_vertices_defined_later() {
-        let mesh = obj("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
-        assert_eq!(mesh.triangles, vec![[0, 1, 2]]);
-    }
-
-    #[test]
-    fn obj_mistakes_are_errors_naming_the_line() {
-        let three = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
-        obj_error("v 0 0\n", 1);
-        let message = obj_error(&format!("{three}v 1 nan 0\n"), 4);
-        assert!(message.contains("vertex y is `nan`"), "{message}");
-        obj_error(&format!("{three}v 1e999 0 0\n"), 4);
-        obj_error(&format!("{three}v 1 zero 0\n"), 4);
-        let message = obj_error(&format!("{three}f 1 2\n"), 4);
-        assert!(message.contains("at least 3"), "{message}");
-        obj_error(&format!("{three}f 0 1 2\n"), 4);
-        obj_error(&format!("{three}f 1 2 x/1\n"), 4);
-        obj_error(&format!("{three}f 1 2 3.5\n"), 4);
-        let message = obj_error(&format!("{three}f -1 -2 -4\n"), 4);
-        assert!(message.contains("3 are defined above"), "{message}");
-        let message = obj_error(&format!("{three}f 1 2 3\nf 1 2 4\nf 1 2 3\n"), 5);
-        assert!(message.contains("index 4 is out of range"), "{message}");
-        obj_error(&format!("{three}f 1 2 99999999999\n"), 4);
-    }
-
-    #[test]
-    fn files_without_faces_and_unknown_names_are_errors() {
-        let path = Path::new("points.obj");
-        let message = Mesh::parse(b"v 0 0 0\n", MeshFormat::Obj, path)
-            .unwrap_err()
-            .to_string();
-        assert!(message.starts_with("points.obj: faces: "), "{message}");
-        assert_eq!(
-            MeshFormat::of(Path::new("a/B.OBJ.gz")),
-            Some(MeshFormat::Obj)
-        );
-        assert_eq!(MeshFormat::of(Path::new("b.ply")), Some(MeshFormat::Ply));
-        assert_eq!(MeshFormat::of(Path::new("c.stl")), None);
-        let message = Mesh::read(Path::new("c.stl")).unwrap_err().to_string();
-        assert!(message.starts_with("c.stl: file name: "), "{message}");
-        let missing = Mesh::read(Path::new("/nonexistent/mesh.obj")).unwrap_err();
-        assert!(matches!(missing, Error::Io { .. }));
-    }
-
-    #[test]
-    fn gzipped_obj_and_ply_files_read_like_plain_ones() {
-        let dir = std::env::temp_dir().join(format!("streak-mesh-gz-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let obj_text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
-        let ply_text = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n\
-            property float y\nproperty float z\nelement face 1\n\
-            property list uchar int vertex_indices\nend_header\n\
-            0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
-        for (name, text) in [("square.obj.gz", obj_text), ("square.ply.gz", ply_text)] {
-            let mut encoder =
-                flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
-            encoder.write_all(text.as_bytes()).unwrap();
-            std::fs::write(dir.join(name), encoder.finish().unwrap()).unwrap();
-            assert_eq!(Mesh::read(&dir.join(name)).unwrap(), square(1.0), "{name}");
-        }
-        std::fs::write(dir.join("broken.obj.gz"), b"\x1f\x8b\x08\x00 not gzip").unwrap();
-        let message = Mesh::read(&dir.join("broken.obj.gz"))
-            .unwrap_err()
-            .to_string();
-        assert!(message.contains("gzip data"), "{message}");
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    /// A file the repository ships for tests (`tests/data`) or for the gallery (`gallery/data`).
-    fn repository_data(relative: &str) -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
-    }
-
-    #[test]
-    fn the_bunny_reads_alike_from_obj_and_ply() {
-        let from_ply =
-            Mesh::read(&repository_data("gallery/data/bunny_bun_zipper.ply.gz")).unwrap();
-        let from_obj =
-            Mesh::read(&repository_data("tests/data/bunny_stanford-bunny.obj.gz")).unwrap();
-        assert_eq!(from_ply.positions.len(), 35_947);
-        assert_eq!(from_ply.triangles.len(), 69_451);
-        assert_eq!(from_obj.triangles, from_ply.triangles);
-        let worst = from_obj
-            .positions
-            .iter()
-            .zip(&from_ply.positions)
-            .map(|(a, b)| a.distance(*b))
-            .fold(0.0, f64::max);
-        assert!(worst < 1e-6, "positions differ by up to {worst}");
-    }
-
-    #[test]
-    fn real_meshes_read_with_their_counts() {
-        // Binary little-endian, with a zero vertex normal that a mesh does not need.
-        let dragon = Mesh::read(&repository_data("tests/data/dragon_100k.ply.gz")).unwrap();
-        assert_eq!(
-            (dragon.positions.len(), dragon.triangles.len()),
-            (50_002, 100_000)
-        );
-        let armadillo = Mesh::read(&repository_data("gallery/data/armadillo_100k.obj.gz")).unwrap();
-        assert_eq!(
-            (armadillo.positions.len(), armadillo.triangles.len()),
-            (49_990, 99_976)
-        );
-        // Closed and wound outward: the signed volume Σ a·(b×c)/6 is positive.
-        for name in [
-            "armadillo_100k.obj.gz",
-            "fandisk.obj.gz",
-            "rocker_arm.obj.gz",
-        ] {
-            let mesh = Mesh::read(&repository_data(&format!("gallery/data/{name}"))).unwrap();
-            let volume: f64 = mesh
-                .triangles
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = mesh.corners(*t).unwrap();
-                    a.dot(b.cross(c)) / 6.0
-                })
-                .sum();
-            assert!(volume > 0.0, "{name}: signed volume {volume}");
-        }
     }
 
     #[test]
@@ -1044,53 +660,5 @@ mod tests {
         assert_eq!((nothing.surfels.len(), nothing.degenerate), (0, 1));
         assert!(square(1.0).sample(0).surfels.is_empty());
         assert!(flat.bounds().is_some() && Mesh::default().bounds().is_none());
-    }
-
-    fn shape(path: &str, samples: i64, centre: Option<bool>) -> MeshShape {
-        MeshShape {
-            path: path.into(),
-            samples,
-            centre,
-        }
-    }
-
-    #[test]
-    fn mesh_shapes_check_their_fields_and_centre_the_mesh() {
-        let dir = std::env::temp_dir().join(format!("streak-mesh-shape-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        std::fs::write(
-            dir.join("box.obj"),
-            "v 1 1 1\nv 3 1 1\nv 3 5 1\nv 1 5 1\nf 1 2 3 4\n",
-        )
-        .unwrap();
-        std::fs::write(dir.join("flat.obj"), "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
-        let scene = Path::new("scene.toml");
-        let surfels = |s: &MeshShape| s.surfels(scene, &dir, "object[0].shape", 1000);
-        let error = |s: &MeshShape| surfels(s).unwrap_err().to_string();
-
-        let centred = surfels(&shape("box.obj", 200, None)).unwrap();
-        assert_eq!(centred.len(), 200);
-        let mean = centred.iter().map(|s| s.position).sum::<DVec3>() / 200.0;
-        assert!(mean.length() < 1e-12, "centroid {mean}");
-        let kept = surfels(&shape("box.obj", 200, Some(false))).unwrap();
-        assert!(
-            (kept[0].position - centred[0].position - DVec3::new(2.0, 3.0, 1.0)).length() < 1e-12
-        );
-
-        for bad in [0, -3, 1001] {
-            let message = error(&shape("box.obj", bad, None));
-            assert!(
-                message.starts_with("scene.toml: object[0].shape.samples: "),
-                "{message}"
-            );
-        }
-        let message = error(&shape("flat.obj", 10, None));
-        assert!(
-            message.contains("flat.obj: faces: all 1 triangles are degenerate"),
-            "{message}"
-        );
-        let message = error(&shape("box.stl", 10, None));
-        assert!(message.contains("box.stl: file name: "), "{message}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

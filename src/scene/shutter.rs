@@ -3,9 +3,11 @@
 //! Every renderer asks the same three questions of a time interval: how much of the exposure falls
 //! in it (its mass), and the mean and variance of time inside it under the shutter weight. The
 //! reference weights its frames by the masses; the blur renderer places each motion ellipse at the
-//! mean and stretches it by the variance (DESIGN.md, "Motion ellipse by summing covariances").
+//! mean and stretches it by the variance (docs/math.md, "Shutter moments").
 
 use serde::Deserialize;
+
+use crate::error::{Error, Result};
 
 /// How the shutter weights time while it is open.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
@@ -65,6 +67,22 @@ const GAUSS_LEGENDRE_8: [(f64, f64); 8] = [
 ];
 
 impl Shutter {
+    /// A shutter open from `open` to `close` in normalized frame time, weighting time by
+    /// `shape`; an error unless 0 ≤ open < close ≤ 1.
+    pub fn new(open: f64, close: f64, shape: ShutterShape) -> Result<Shutter> {
+        let open = super::finite("open", open)?;
+        let close = super::finite("close", close)?;
+        if !(0.0..=1.0).contains(&open) || !(0.0..=1.0).contains(&close) || !(open < close) {
+            return Err(Error::invalid(
+                "",
+                format!(
+                    "open = {open}, close = {close}: need 0 ≤ open < close ≤ 1 (normalized frame time)"
+                ),
+            ));
+        }
+        Ok(Shutter { open, close, shape })
+    }
+
     /// Length of the exposure in normalized time.
     #[must_use]
     pub fn duration(&self) -> f64 {
@@ -139,7 +157,7 @@ impl Shutter {
     /// Mass, mean and variance of time over [t0, t1] (clipped to the open interval).
     ///
     /// ```
-    /// use streak::shutter::Shutter;
+    /// use streak::Shutter;
     /// // A box shutter: the whole exposure is uniform on [0, 1], variance 1/12.
     /// let m = Shutter::default().moments(0.0, 1.0);
     /// assert!((m.mass - 1.0).abs() < 1e-12 && (m.variance - 1.0 / 12.0).abs() < 1e-12);

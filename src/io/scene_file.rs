@@ -1,0 +1,716 @@
+//! Scene files (TOML): what they may say, and their validation into a [`Scene`].
+//!
+//! Parsing is two steps: serde reads the file into plain `*Spec` structs that mirror the format
+//! (unknown keys are errors), then the model's validating constructors build the scene, and their
+//! errors are placed in the file: every message names the file and the field
+//! (`object[1].keyframe[2].t`) and says what would be right. The format is documented in the
+//! README.
+
+use glam::{DQuat, DVec3};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+use super::ply::read_ply;
+use super::raw_volume::VoxelType;
+use crate::error::{Error, Result};
+use crate::scene::{
+    Camera, Keyframe, Light, Lighting, Motion, Object, Pose, Scene, Shutter, ShutterShape,
+};
+use crate::surfels::cloud::{check_neighbours, DEFAULT_NEIGHBOURS};
+use crate::surfels::volume::{voxel_count, IsoSurface, Volume, MAX_VOXELS};
+use crate::surfels::{
+    from_mesh, from_point_cloud, from_volume, Colouring, Mesh, Primitive, Surfel,
+    MAX_SURFELS_PER_OBJECT,
+};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneSpec {
+    #[serde(default = "default_background")]
+    background: [f64; 3],
+    camera: CameraSpec,
+    #[serde(default)]
+    shutter: ShutterSpec,
+    lighting: Option<LightingSpec>,
+    style: Option<PathBuf>,
+    #[serde(default)]
+    object: Vec<ObjectSpec>,
+}
+
+fn default_background() -> [f64; 3] {
+    [1.0, 1.0, 1.0]
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraSpec {
+    eye: [f64; 3],
+    target: [f64; 3],
+    #[serde(default = "default_up")]
+    up: [f64; 3],
+    fov_y: f64,
+    width: u32,
+    height: u32,
+    near: Option<f64>,
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct ShutterSpec {
+    open: f64,
+    close: f64,
+    shape: ShutterShape,
+}
+
+/// Missing shutter fields take [`Shutter::default`]'s values.
+impl Default for ShutterSpec {
+    fn default() -> Self {
+        let Shutter { open, close, shape } = Shutter::default();
+        ShutterSpec { open, close, shape }
+    }
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightingSpec {
+    #[serde(default)]
+    ambient: f64,
+    #[serde(default)]
+    light: Vec<LightSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightSpec {
+    direction: [f64; 3],
+    #[serde(default = "one")]
+    intensity: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectSpec {
+    name: Option<String>,
+    shape: Shape,
+    spacing: Option<f64>,
+    colour: Option<ColourSpec>,
+    #[serde(default)]
+    keyframe: Vec<KeyframeSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KeyframeSpec {
+    t: f64,
+    #[serde(default)]
+    translate: [f64; 3],
+    rotate: Option<RotationSpec>,
+    #[serde(default = "one")]
+    scale: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RotationSpec {
+    axis: [f64; 3],
+    degrees: f64,
+}
+
+/// An object's geometry, in its own object space: a procedural primitive (centred at the origin),
+/// a point cloud file, the iso-surface of a volume file (centred likewise) or a triangle mesh file
+/// sampled into surfels (centred likewise unless it says not to be).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Shape {
+    /// A sphere of `radius`.
+    Sphere {
+        /// Radius.
+        radius: f64,
+    },
+    /// A rectangle in the xy plane facing +z, `size = [x, y]`.
+    Quad {
+        /// Side lengths along x and y.
+        size: [f64; 2],
+    },
+    /// An axis-aligned box, `size = [x, y, z]`.
+    Box {
+        /// Side lengths along x, y and z.
+        size: [f64; 3],
+    },
+    /// A capped cylinder along y (a rod), of `radius` and `length`.
+    Cylinder {
+        /// Radius.
+        radius: f64,
+        /// Length along y.
+        length: f64,
+    },
+    /// A torus in the xz plane around y: `major` radius of the ring, `minor` radius of the tube.
+    Torus {
+        /// Radius of the ring.
+        major: f64,
+        /// Radius of the tube.
+        minor: f64,
+    },
+    /// A (p, q) torus knot of tube radius `tube`; `scale` sets its overall size (the core curve
+    /// reaches about 3·scale from the centre).
+    TorusKnot {
+        /// Turns around the torus's axis.
+        p: u32,
+        /// Turns through the torus's hole.
+        q: u32,
+        /// Overall size.
+        scale: f64,
+        /// Tube radius.
+        tube: f64,
+    },
+    /// A PLY point cloud (ascii or binary, optionally gzipped); normals, radii and areas missing
+    /// from the file are estimated from `neighbours` nearest neighbours.
+    Ply {
+        /// The file, relative to the scene file.
+        path: PathBuf,
+        /// Neighbours used for estimation (default [`DEFAULT_NEIGHBOURS`]).
+        neighbours: Option<usize>,
+    },
+    /// The iso-surface of a raw scalar volume (optionally gzipped), one surfel per voxel cell it
+    /// crosses (Guan & Mueller 2004, §3.1); see [`crate::volume`].
+    Volume(VolumeShape),
+    /// A triangle mesh (OBJ or PLY, optionally gzipped) sampled into a given number of surfels,
+    /// area-weighted; see [`crate::mesh`].
+    Mesh(MeshShape),
+}
+
+/// How an object is coloured.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(try_from = "toml::Value")]
+pub enum ColourSpec {
+    /// One linear RGB colour.
+    Rgb([f64; 3]),
+    /// 0.5 + 0.5·n of the object-space normal: colour sticks to the surface as it moves.
+    Normal,
+    /// The file's colours where it has them, else light grey.
+    Default,
+}
+
+impl From<&ColourSpec> for Colouring {
+    fn from(spec: &ColourSpec) -> Colouring {
+        match spec {
+            ColourSpec::Rgb(rgb) => Colouring::Rgb(rgb.map(|c| c as f32)),
+            ColourSpec::Normal => Colouring::Normal,
+            ColourSpec::Default => Colouring::Own,
+        }
+    }
+}
+
+impl TryFrom<toml::Value> for ColourSpec {
+    type Error = String;
+    fn try_from(value: toml::Value) -> std::result::Result<Self, String> {
+        let wrong =
+            || format!("colour must be [r, g, b] (linear, 0 to 1) or \"normal\", not {value}");
+        match &value {
+            toml::Value::String(s) if s == "normal" => Ok(ColourSpec::Normal),
+            toml::Value::Array(items) if items.len() == 3 => {
+                let mut rgb = [0.0; 3];
+                for (c, item) in rgb.iter_mut().zip(items) {
+                    *c = match item {
+                        toml::Value::Float(f) => *f,
+                        toml::Value::Integer(i) => *i as f64,
+                        _ => return Err(wrong()),
+                    };
+                }
+                Ok(ColourSpec::Rgb(rgb))
+            }
+            _ => Err(wrong()),
+        }
+    }
+}
+
+/// A mesh shape as a scene file gives it (`shape = { type = "mesh", … }`), before checking.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MeshShape {
+    /// The OBJ or PLY file (optionally `.gz`), relative to the scene file.
+    pub path: PathBuf,
+    /// How many surfels to sample the surface into.
+    pub samples: i64,
+    /// Whether to move the mesh so that the centre of its bounding box is the object's origin
+    /// (default true); false keeps the file's coordinates.
+    pub centre: Option<bool>,
+}
+
+impl MeshShape {
+    /// Check every field, read the file and sample its surface into surfels (at most
+    /// `max_surfels`). `file` names the scene in messages, `base` anchors the relative path,
+    /// `field` is where the shape sits in the scene (e.g. `object[2].shape`).
+    pub fn surfels(
+        &self,
+        file: &Path,
+        base: &Path,
+        field: &str,
+        max_surfels: usize,
+    ) -> Result<Vec<Surfel>> {
+        let count = usize::try_from(self.samples)
+            .ok()
+            .filter(|n| (1..=max_surfels).contains(n))
+            .ok_or_else(|| {
+                Error::input(
+                    file,
+                    format!("{field}.samples"),
+                    format!(
+                        "{}: the number of surfels must be between 1 and {max_surfels}",
+                        self.samples
+                    ),
+                )
+            })?;
+        let path = base.join(&self.path);
+        let mesh = Mesh::read(&path)?;
+        from_mesh(&mesh, count, self.centre.unwrap_or(true)).map_err(|e| e.in_file(&path, ""))
+    }
+}
+
+/// A volume shape as a scene file gives it (`shape = { type = "volume", … }`), before checking.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct VolumeShape {
+    /// The raw file (`.gz` for gzip), relative to the scene file.
+    pub path: PathBuf,
+    /// Voxels along x, y and z.
+    pub dimensions: [i64; 3],
+    /// Voxel type: `uint8`, `uint16`, `int16` or `float32`.
+    pub voxel: String,
+    /// Distance between voxel centres along x, y and z in object units (default [1, 1, 1]).
+    pub spacing: Option<[f64; 3]>,
+    /// The iso-value; the surface encloses the values above it.
+    pub iso: f64,
+    /// Use every `stride`-th voxel along each axis (default 1).
+    pub stride: Option<i64>,
+}
+
+impl VolumeShape {
+    /// Check every field, read the file and extract the iso-surface into surfels (at most
+    /// `max_surfels`). `file` names the scene in messages, `base` anchors the relative path,
+    /// `field` is where the shape sits in the scene (e.g. `object[2].shape`).
+    pub fn surfels(
+        &self,
+        file: &Path,
+        base: &Path,
+        field: &str,
+        max_surfels: usize,
+    ) -> Result<Vec<Surfel>> {
+        let voxel = VoxelType::from_name(&self.voxel).ok_or_else(|| {
+            let names: Vec<String> = VoxelType::ALL
+                .iter()
+                .map(|t| format!("\"{}\"", t.name()))
+                .collect();
+            Error::input(
+                file,
+                format!("{field}.voxel"),
+                format!("\"{}\": use one of {}", self.voxel, names.join(", ")),
+            )
+        })?;
+        let mut dimensions = [0usize; 3];
+        for (axis, &n) in self.dimensions.iter().enumerate() {
+            if !(2..=MAX_VOXELS as i64).contains(&n) {
+                return Err(Error::input(
+                    file,
+                    format!("{field}.dimensions[{axis}]"),
+                    format!("{n}: a volume needs at least 2 voxels along each axis"),
+                ));
+            }
+            dimensions[axis] = n as usize;
+        }
+        voxel_count(dimensions).map_err(|e| e.in_file(file, field))?;
+        let volume = Volume::read(&base.join(&self.path), dimensions, voxel)?;
+        let surface = IsoSurface {
+            iso: self.iso,
+            spacing: DVec3::from_array(self.spacing.unwrap_or([1.0; 3])),
+            // A negative stride is as wrong as 0, which the check below reports.
+            stride: usize::try_from(self.stride.unwrap_or(1)).unwrap_or(0),
+        };
+        from_volume(&volume, &surface, max_surfels).map_err(|e| e.in_file(file, field))
+    }
+}
+
+impl Scene {
+    /// Read and validate a scene file. Relative paths inside it (point clouds, meshes, volumes,
+    /// the style) are resolved against the file's folder.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Scene::parse(&text, path)
+    }
+
+    /// Validate scene text; `path` names the file in messages and anchors relative paths.
+    pub fn parse(text: &str, path: &Path) -> Result<Scene> {
+        validate(parse_toml(text, path)?, path)
+    }
+}
+
+/// Read TOML `text` from `path` into `T`, naming the line of any syntax error or unknown key.
+pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
+    toml::from_str(text).map_err(|e| {
+        let line = e
+            .span()
+            .map(|s| text[..s.start].matches('\n').count() + 1)
+            .unwrap_or(0);
+        Error::input(path, format!("line {line}"), e.message().trim_end())
+    })
+}
+
+fn validate(spec: SceneSpec, path: &Path) -> Result<Scene> {
+    let within = |field: &'static str| move |e: Error| e.in_file(path, field);
+    let c = &spec.camera;
+    let mut camera = Camera::new(
+        DVec3::from_array(c.eye),
+        DVec3::from_array(c.target),
+        DVec3::from_array(c.up),
+        c.fov_y,
+        c.width,
+        c.height,
+    )
+    .map_err(within("camera"))?;
+    if let Some(near) = c.near {
+        camera = camera.with_near(near).map_err(within("camera"))?;
+    }
+    let shutter = Shutter::new(spec.shutter.open, spec.shutter.close, spec.shutter.shape)
+        .map_err(within("shutter"))?;
+    let lighting = match &spec.lighting {
+        None => Lighting::default(),
+        Some(l) => {
+            let lights = l
+                .light
+                .iter()
+                .enumerate()
+                .map(|(i, light)| {
+                    Light::new(DVec3::from_array(light.direction), light.intensity)
+                        .map_err(|e| e.in_file(path, &format!("lighting.light[{i}]")))
+                })
+                .collect::<Result<_>>()?;
+            Lighting::new(l.ambient, lights).map_err(within("lighting"))?
+        }
+    };
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut scene = Scene::new(camera)
+        .with_background(spec.background)
+        .map_err(within(""))?
+        .with_shutter(shutter)
+        .with_lighting(lighting);
+    for (i, o) in spec.object.iter().enumerate() {
+        scene = scene.with_object(validate_object(o, i, path, base)?);
+    }
+    scene.source = Some(path.to_path_buf());
+    scene.style = spec.style.map(|s| base.join(s));
+    Ok(scene)
+}
+
+fn validate_object(o: &ObjectSpec, index: usize, path: &Path, base: &Path) -> Result<Object> {
+    let field = format!("object[{index}]");
+    let name = o.name.clone().unwrap_or_else(|| format!("object {index}"));
+    let colouring = match &o.colour {
+        Some(ColourSpec::Rgb(rgb)) => {
+            Colouring::Rgb(crate::scene::rgb("colour", *rgb).map_err(|e| e.in_file(path, &field))?)
+        }
+        Some(other) => Colouring::from(other),
+        None => Colouring::Own,
+    };
+    let mut surfels = object_surfels(o, path, base, &field)?;
+    colouring.apply(&mut surfels);
+    let mut keyframes = Vec::with_capacity(o.keyframe.len());
+    for (k, key) in o.keyframe.iter().enumerate() {
+        let rotation = match &key.rotate {
+            None => DQuat::IDENTITY,
+            Some(r) => {
+                let at = |name: &str| format!("{field}.keyframe[{k}].rotate.{name}");
+                let axis = crate::scene::finite3("axis", DVec3::from_array(r.axis))
+                    .map_err(|e| e.in_file(path, &format!("{field}.keyframe[{k}].rotate")))?
+                    .try_normalize()
+                    .ok_or_else(|| Error::input(path, at("axis"), "must not be the zero vector"))?;
+                let degrees = crate::scene::finite("degrees", r.degrees)
+                    .map_err(|e| e.in_file(path, &format!("{field}.keyframe[{k}].rotate")))?;
+                DQuat::from_axis_angle(axis, degrees.to_radians())
+            }
+        };
+        keyframes.push(Keyframe {
+            t: key.t,
+            pose: Pose {
+                translation: DVec3::from_array(key.translate),
+                rotation,
+                scale: key.scale,
+            },
+        });
+    }
+    let motion = Motion::new(keyframes).map_err(|e| e.in_file(path, &field))?;
+    Ok(Object::new(name, surfels, motion))
+}
+
+/// The surfels of an object's shape, in their sources' own colours.
+fn object_surfels(o: &ObjectSpec, path: &Path, base: &Path, field: &str) -> Result<Vec<Surfel>> {
+    let shape_field = format!("{field}.shape");
+    let spacing_field = format!("{field}.spacing");
+    let no_spacing = |why: &str| match o.spacing {
+        Some(_) => Err(Error::input(path, &spacing_field, why)),
+        None => Ok(()),
+    };
+    let primitive = match o.shape {
+        Shape::Ply {
+            path: ref file,
+            neighbours,
+        } => {
+            no_spacing("a point cloud makes one surfel per point: remove this `spacing`")?;
+            let neighbours = check_neighbours(neighbours.unwrap_or(DEFAULT_NEIGHBOURS))
+                .map_err(|e| e.in_file(path, &shape_field))?;
+            return from_point_cloud(&read_ply(&base.join(file))?, neighbours)
+                .map_err(|e| e.in_file(path, &shape_field));
+        }
+        Shape::Volume(ref volume) => {
+            no_spacing(
+                "a volume makes one surfel per voxel cell its surface crosses: remove this \
+                 `spacing` (the distance between voxels is `shape.spacing = [x, y, z]`)",
+            )?;
+            return volume.surfels(path, base, &shape_field, MAX_SURFELS_PER_OBJECT);
+        }
+        Shape::Mesh(ref mesh) => {
+            no_spacing("a mesh is sampled into `shape.samples` surfels: remove this `spacing`")?;
+            return mesh.surfels(path, base, &shape_field, MAX_SURFELS_PER_OBJECT);
+        }
+        Shape::Sphere { radius } => Primitive::Sphere { radius },
+        Shape::Quad { size } => Primitive::Quad { size },
+        Shape::Box { size } => Primitive::Box { size },
+        Shape::Cylinder { radius, length } => Primitive::Cylinder { radius, length },
+        Shape::Torus { major, minor } => Primitive::Torus { major, minor },
+        Shape::TorusKnot { p, q, scale, tube } => Primitive::TorusKnot { p, q, scale, tube },
+    };
+    let spacing = o.spacing.ok_or_else(|| {
+        Error::input(
+            path,
+            &spacing_field,
+            "a procedural shape needs `spacing`, the distance between surfels",
+        )
+    })?;
+    primitive.surfels(spacing).map_err(|e| match &e {
+        Error::Invalid { field: f, .. } if f == "spacing" => e.in_file(path, field),
+        _ => e.in_file(path, &shape_field),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::surfels::volume::tests::{voxel_positions, workdir};
+
+    const MINIMAL: &str = r#"
+        [camera]
+        eye = [0, 0, 5]
+        target = [0, 0, 0]
+        fov_y = 40
+        width = 64
+        height = 48
+
+        [[object]]
+        shape = { type = "sphere", radius = 1.0 }
+        spacing = 0.1
+    "#;
+
+    fn parse(text: &str) -> Result<Scene> {
+        Scene::parse(text, Path::new("test.toml"))
+    }
+
+    fn error_of(text: &str) -> String {
+        parse(text).expect_err("should be rejected").to_string()
+    }
+
+    #[test]
+    fn a_minimal_scene_has_the_documented_defaults() {
+        let scene = parse(MINIMAL).unwrap();
+        assert_eq!(scene.background, [1.0; 3]);
+        assert_eq!(scene.shutter, Shutter::default());
+        assert!(!scene.lighting.is_lit());
+        assert_eq!(scene.objects.len(), 1);
+        assert!(!scene.objects[0].motion.moves_within(0.0, 1.0));
+    }
+
+    #[test]
+    fn unknown_keys_are_named_with_their_line() {
+        let message = error_of(&MINIMAL.replace("fov_y = 40", "fov_y = 40\nfocal = 3"));
+        assert!(
+            message.contains("test.toml")
+                && message.contains("focal")
+                && message.contains("line 6"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn non_finite_numbers_are_rejected_by_field() {
+        let message = error_of(&MINIMAL.replace("radius = 1.0", "radius = nan"));
+        assert!(message.contains("object[0].shape.radius"), "{message}");
+        let message = error_of(&MINIMAL.replace("eye = [0, 0, 5]", "eye = [0, inf, 5]"));
+        assert!(message.contains("camera.eye[1]"), "{message}");
+    }
+
+    #[test]
+    fn keyframes_out_of_order_or_outside_the_frame_are_rejected() {
+        let keys = "\n[[object.keyframe]]\nt = 0.6\n[[object.keyframe]]\nt = 0.4\n";
+        assert!(error_of(&format!("{MINIMAL}{keys}")).contains("object[0].keyframe[1].t"));
+        let keys = "\n[[object.keyframe]]\nt = 1.5\n";
+        assert!(error_of(&format!("{MINIMAL}{keys}")).contains("outside the frame"));
+    }
+
+    #[test]
+    fn a_half_turn_between_keyframes_asks_for_more_keyframes() {
+        let keys = "\n[[object.keyframe]]\nt = 0\n[[object.keyframe]]\nt = 1\nrotate = { axis = [0, 1, 0], degrees = 200 }\n";
+        assert!(error_of(&format!("{MINIMAL}{keys}")).contains("add keyframes in between"));
+    }
+
+    fn mesh_shape(path: &str, samples: i64, centre: Option<bool>) -> MeshShape {
+        MeshShape {
+            path: path.into(),
+            samples,
+            centre,
+        }
+    }
+
+    #[test]
+    fn mesh_shapes_check_their_fields_and_centre_the_mesh() {
+        let dir = std::env::temp_dir().join(format!("streak-mesh-shape-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(
+            dir.join("box.obj"),
+            "v 1 1 1\nv 3 1 1\nv 3 5 1\nv 1 5 1\nf 1 2 3 4\n",
+        )
+        .unwrap();
+        std::fs::write(dir.join("flat.obj"), "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
+        let scene = Path::new("scene.toml");
+        let surfels = |s: &MeshShape| s.surfels(scene, &dir, "object[0].shape", 1000);
+        let error = |s: &MeshShape| surfels(s).unwrap_err().to_string();
+
+        let centred = surfels(&mesh_shape("box.obj", 200, None)).unwrap();
+        assert_eq!(centred.len(), 200);
+        let mean = centred.iter().map(|s| s.position).sum::<DVec3>() / 200.0;
+        assert!(mean.length() < 1e-12, "centroid {mean}");
+        let kept = surfels(&mesh_shape("box.obj", 200, Some(false))).unwrap();
+        assert!(
+            (kept[0].position - centred[0].position - DVec3::new(2.0, 3.0, 1.0)).length() < 1e-12
+        );
+
+        for bad in [0, -3, 1001] {
+            let message = error(&mesh_shape("box.obj", bad, None));
+            assert!(
+                message.starts_with("scene.toml: object[0].shape.samples: "),
+                "{message}"
+            );
+        }
+        let message = error(&mesh_shape("flat.obj", 10, None));
+        assert!(
+            message.contains("flat.obj: faces: all 1 triangles are degenerate"),
+            "{message}"
+        );
+        let message = error(&mesh_shape("box.stl", 10, None));
+        assert!(message.contains("box.stl: file name: "), "{message}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A scene's volume shape over a small uint8 sphere file.
+    fn volume_shape() -> (VolumeShape, PathBuf) {
+        let dir = workdir("shape");
+        let bytes: Vec<u8> = voxel_positions([16; 3], DVec3::ONE)
+            .map(|p| (100.0 + 8.0 * (6.0 - p.length())).clamp(0.0, 255.0) as u8)
+            .collect();
+        std::fs::write(dir.join("ball.raw"), bytes).unwrap();
+        let shape = VolumeShape {
+            path: "ball.raw".into(),
+            dimensions: [16; 3],
+            voxel: "uint8".into(),
+            spacing: None,
+            iso: 100.0,
+            stride: None,
+        };
+        (shape, dir)
+    }
+
+    #[test]
+    fn shape_fields_are_checked_by_name() {
+        let (good, dir) = volume_shape();
+        let scene = Path::new("scene.toml");
+        let surfels = good
+            .surfels(scene, &dir, "object[0].shape", 1_000_000)
+            .unwrap();
+        assert!(surfels.len() > 100);
+        type Edit = fn(&mut VolumeShape);
+        let cases: [(Edit, &str, &str); 10] = [
+            (
+                |s| s.voxel = "int32".into(),
+                "object[0].shape.voxel",
+                "use one of \"uint8\"",
+            ),
+            (
+                |s| s.dimensions[2] = 0,
+                "object[0].shape.dimensions[2]",
+                "at least 2",
+            ),
+            (
+                |s| s.dimensions[0] = -16,
+                "object[0].shape.dimensions[0]",
+                "at least 2",
+            ),
+            (
+                |s| s.dimensions = [1 << 20; 3],
+                "object[0].shape.dimensions",
+                "limit of 2147483648",
+            ),
+            (
+                |s| s.spacing = Some([1.0, -1.0, 1.0]),
+                "object[0].shape.spacing[1]",
+                "between",
+            ),
+            (
+                |s| s.spacing = Some([1.0, 1.0, f64::NAN]),
+                "object[0].shape.spacing[2]",
+                "between",
+            ),
+            (
+                |s| s.iso = f64::INFINITY,
+                "object[0].shape.iso",
+                "not a finite number",
+            ),
+            (
+                |s| s.iso = 300.0,
+                "object[0].shape.iso",
+                "values run from 44 to 141",
+            ),
+            (
+                |s| s.stride = Some(0),
+                "object[0].shape.stride",
+                "from 1 (every voxel) to 15",
+            ),
+            (
+                |s| s.stride = Some(16),
+                "object[0].shape.stride",
+                "from 1 (every voxel) to 15",
+            ),
+        ];
+        for (change, field, hint) in cases {
+            let mut bad = good.clone();
+            change(&mut bad);
+            let message = bad
+                .surfels(scene, &dir, "object[0].shape", 1_000_000)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                message.starts_with(&format!("scene.toml: {field}: ")) && message.contains(hint),
+                "{message}"
+            );
+        }
+        let message = good
+            .surfels(scene, &dir, "object[0].shape", 100)
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("object[0].shape.stride") && message.contains("larger stride"));
+    }
+}

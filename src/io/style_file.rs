@@ -1,0 +1,351 @@
+//! Style files (TOML): serde reads a `*Spec` that mirrors the format and rejects unknown keys,
+//! then [`Style::check`] checks every value and the error is placed in the file.
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+use super::scene_file::parse_toml;
+use crate::error::{Error, Result};
+use crate::raster::{Profile, Texture};
+use crate::style::{
+    Blend, Composite, Emitters, ObjectLook, RampBy, Select, SpeedLines, Style, Trail, TrailColour,
+    MAX_TEXTURE_SIDE,
+};
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct StyleSpec {
+    description: Option<String>,
+    background: Option<[f64; 3]>,
+    #[serde(default)]
+    object: ObjectLookSpec,
+    #[serde(default)]
+    trail: TrailSpec,
+    #[serde(default)]
+    speed_lines: SpeedLinesSpec,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct ObjectLookSpec {
+    draw: bool,
+    flash: f64,
+    opacity: f64,
+    colour: Option<[f64; 3]>,
+}
+
+impl Default for ObjectLookSpec {
+    fn default() -> Self {
+        ObjectLookSpec {
+            draw: true,
+            flash: 1.0,
+            opacity: 1.0,
+            colour: None,
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct TrailSpec {
+    draw: bool,
+    length: f64,
+    offset: f64,
+    copies: u32,
+    duty: f64,
+    blend: Blend,
+    composite: Composite,
+    intensity: f64,
+    density: f64,
+    width: f64,
+    colour: TrailColourSpec,
+    ramp: Option<Vec<[f64; 3]>>,
+    ramp_by: RampBy,
+    speed_range: Option<[f64; 2]>,
+    fade: f64,
+    texture: TextureSpec,
+    modulate_light: bool,
+    modulate_view: bool,
+    emitters: Emitters,
+}
+
+impl Default for TrailSpec {
+    fn default() -> Self {
+        TrailSpec {
+            draw: true,
+            length: 1.0,
+            offset: 0.0,
+            copies: 1,
+            duty: 1.0,
+            blend: Blend::Alpha,
+            composite: Composite::Under,
+            intensity: 1.0,
+            density: 1.0,
+            width: 1.0,
+            colour: TrailColourSpec::Object,
+            ramp: None,
+            ramp_by: RampBy::Speed,
+            speed_range: None,
+            fade: 1.0,
+            texture: TextureSpec::Name(TextureName::Gaussian),
+            modulate_light: false,
+            modulate_view: false,
+            emitters: Emitters::Visible,
+        }
+    }
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum TrailColourSpec {
+    Object,
+    Ramp,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum TextureSpec {
+    Name(TextureName),
+    Image { image: PathBuf },
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum TextureName {
+    Gaussian,
+    Disc,
+    Ring,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct SpeedLinesSpec {
+    draw: bool,
+    count: u32,
+    select: Select,
+    spacing: f64,
+    length: f64,
+    offset: f64,
+    width: f64,
+    taper: f64,
+    fade: f64,
+    opacity: f64,
+    colour: [f64; 3],
+}
+
+impl Default for SpeedLinesSpec {
+    fn default() -> Self {
+        SpeedLinesSpec {
+            draw: false,
+            count: 40,
+            select: Select::Silhouette,
+            spacing: 12.0,
+            length: 1.0,
+            offset: 0.0,
+            width: 2.0,
+            taper: 0.2,
+            fade: 0.0,
+            opacity: 0.9,
+            colour: [0.0; 3],
+        }
+    }
+}
+
+impl Style {
+    /// Read and validate a style file; a texture image is found relative to it.
+    pub fn load(path: &Path) -> Result<Style> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Style::parse(&text, path)
+    }
+
+    /// Validate style text; `path` names the file in messages and anchors a texture's path.
+    pub fn parse(text: &str, path: &Path) -> Result<Style> {
+        let mut style = build(parse_toml(text, path)?, path)?;
+        style.source = Some(path.to_path_buf());
+        Ok(style)
+    }
+}
+
+/// The style an empty file gives.
+pub(crate) fn default_style() -> Style {
+    build(StyleSpec::default(), Path::new("(default style)")).expect("the default style is valid")
+}
+
+/// A colour as the renderers store it (its range is [`Style::check`]'s to check).
+fn linear(c: [f64; 3]) -> [f32; 3] {
+    c.map(|x| x as f32)
+}
+
+fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
+    let o = &spec.object;
+    let object = ObjectLook {
+        draw: o.draw,
+        flash: o.flash,
+        opacity: o.opacity,
+        colour: o.colour.map(linear),
+    };
+    let t = &spec.trail;
+    let trail_colour = match (t.colour, &t.ramp) {
+        (TrailColourSpec::Object, _) => TrailColour::Object,
+        (TrailColourSpec::Ramp, None) => {
+            return Err(Error::input(
+                path,
+                "trail.ramp",
+                "colour = \"ramp\" needs `ramp`, a list of at least two [r, g, b] stops",
+            ))
+        }
+        (TrailColourSpec::Ramp, Some(stops)) => TrailColour::Ramp {
+            stops: stops.iter().map(|&c| linear(c)).collect(),
+            by: t.ramp_by,
+            speed_range: t.speed_range,
+        },
+    };
+    let (profile, texture) = match &t.texture {
+        TextureSpec::Name(TextureName::Gaussian) => (Profile::Gaussian, None),
+        TextureSpec::Name(TextureName::Disc) => (Profile::Disc, None),
+        TextureSpec::Name(TextureName::Ring) => (Profile::Ring, None),
+        TextureSpec::Image { image } => {
+            let base = path.parent().unwrap_or(Path::new("."));
+            (
+                Profile::Texture,
+                Some(load_texture(&base.join(image), path)?),
+            )
+        }
+    };
+    let trail = Trail {
+        draw: t.draw,
+        length: t.length,
+        offset: t.offset,
+        copies: t.copies,
+        duty: t.duty,
+        blend: t.blend,
+        composite: t.composite,
+        intensity: t.intensity,
+        width: t.width,
+        density: t.density,
+        colour: trail_colour,
+        fade: t.fade,
+        profile,
+        texture,
+        modulate_light: t.modulate_light,
+        modulate_view: t.modulate_view,
+        emitters: t.emitters,
+    };
+    let s = &spec.speed_lines;
+    let speed_lines = SpeedLines {
+        draw: s.draw,
+        count: s.count,
+        select: s.select,
+        spacing: s.spacing,
+        length: s.length,
+        offset: s.offset,
+        width: s.width,
+        taper: s.taper,
+        fade: s.fade,
+        opacity: s.opacity,
+        colour: linear(s.colour),
+    };
+    let style = Style {
+        source: None,
+        description: spec.description.unwrap_or_default(),
+        background: spec.background.map(linear),
+        object,
+        trail,
+        speed_lines,
+    };
+    style.check().map_err(|e| e.in_file(path, ""))?;
+    Ok(style)
+}
+
+/// A trail texture from an image file: its luminance times its alpha, in [0, 1].
+fn load_texture(image_path: &Path, style_path: &Path) -> Result<Texture> {
+    let field = "trail.texture.image";
+    let image = image::open(image_path).map_err(|e| {
+        Error::input(
+            style_path,
+            field,
+            format!("cannot read {}: {e}", image_path.display()),
+        )
+    })?;
+    let (width, height) = (image.width(), image.height());
+    if width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE {
+        return Err(Error::input(
+            style_path,
+            field,
+            format!(
+                "{} is {width}×{height}: textures may be at most {MAX_TEXTURE_SIDE} px a side",
+                image_path.display()
+            ),
+        ));
+    }
+    let rgba = image.to_rgba32f();
+    let values = rgba
+        .pixels()
+        .map(|p| {
+            let [r, g, b, a] = p.0;
+            ((0.2126 * r + 0.7152 * g + 0.0722 * b) * a).clamp(0.0, 1.0)
+        })
+        .collect();
+    Texture::new(width, height, values).ok_or_else(|| {
+        Error::input(
+            style_path,
+            field,
+            format!(
+                "{} is blank: a texture needs some light inside its inscribed circle",
+                image_path.display()
+            ),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn error_of(text: &str) -> String {
+        Style::parse(text, Path::new("look.toml"))
+            .expect_err("should be rejected")
+            .to_string()
+    }
+
+    #[test]
+    fn an_empty_style_is_the_flash_and_trail_default() {
+        let style = Style::parse("", Path::new("plain.toml")).unwrap();
+        assert_eq!(style.name(), "plain");
+        assert!(style.object.draw && style.object.flash == 1.0 && style.trail.draw);
+        assert_eq!(style.trail.blend, Blend::Alpha);
+        assert_eq!(style.trail.emitters, Emitters::Visible);
+        assert!(!style.speed_lines.draw);
+        assert_eq!(
+            Style {
+                source: None,
+                ..style
+            },
+            Style::default()
+        );
+    }
+
+    #[test]
+    fn mistakes_name_their_field() {
+        assert!(error_of("[trail]\nlength = 1.5").contains("trail.length"));
+        assert!(error_of("[trail]\nfade = nan").contains("trail.fade"));
+        assert!(error_of("[trail]\ncopies = 0").contains("trail.copies"));
+        assert!(error_of("[trail]\ncolour = \"ramp\"").contains("trail.ramp"));
+        assert!(
+            error_of("[trail]\ncolour = \"ramp\"\nramp = [[1, 0, 0], [2e5, 0, 0]]")
+                .contains("trail.ramp[1][0]")
+        );
+        assert!(error_of("[object]\nflash = -0.1").contains("object.flash"));
+        assert!(error_of("[speed_lines]\nwidth = 0").contains("speed_lines.width"));
+        let unknown = error_of("[trail]\nlenght = 0.5");
+        assert!(
+            unknown.contains("lenght") && unknown.contains("line 2"),
+            "{unknown}"
+        );
+        let texture = error_of("[trail]\ntexture = { image = \"no-such.png\" }");
+        assert!(
+            texture.contains("trail.texture.image") && texture.contains("no-such.png"),
+            "{texture}"
+        );
+    }
+}

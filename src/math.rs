@@ -1,0 +1,206 @@
+//! Small linear algebra the stages share: symmetric 2×2 matrices (screen covariances and
+//! conics) with their eigen-decomposition, and the smallest eigenvector of a symmetric 3×3 matrix
+//! (a point neighbourhood's normal).
+
+use glam::{DMat3, DVec2, DVec3};
+
+/// A symmetric 2×2 matrix (a covariance or its inverse, the conic).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sym2 {
+    /// Row 0, column 0.
+    pub xx: f64,
+    /// The off-diagonal entry.
+    pub xy: f64,
+    /// Row 1, column 1.
+    pub yy: f64,
+}
+
+impl Sym2 {
+    /// σ² I.
+    #[must_use]
+    pub fn isotropic(variance: f64) -> Self {
+        Sym2 {
+            xx: variance,
+            xy: 0.0,
+            yy: variance,
+        }
+    }
+
+    /// v vᵀ.
+    #[must_use]
+    pub fn outer(v: DVec2) -> Self {
+        Sym2 {
+            xx: v.x * v.x,
+            xy: v.x * v.y,
+            yy: v.y * v.y,
+        }
+    }
+
+    /// vᵀ S v.
+    #[must_use]
+    pub fn quadratic(&self, v: DVec2) -> f64 {
+        self.xx * v.x * v.x + 2.0 * self.xy * v.x * v.y + self.yy * v.y * v.y
+    }
+
+    /// The determinant.
+    #[must_use]
+    pub fn det(&self) -> f64 {
+        self.xx * self.yy - self.xy * self.xy
+    }
+
+    /// Every entry times `k`.
+    #[must_use]
+    pub fn scaled(&self, k: f64) -> Self {
+        Sym2 {
+            xx: self.xx * k,
+            xy: self.xy * k,
+            yy: self.yy * k,
+        }
+    }
+
+    /// The inverse, or `None` when singular or not finite.
+    #[must_use]
+    pub fn inverse(&self) -> Option<Self> {
+        let det = self.det();
+        if !(det > 0.0 && det.is_finite()) {
+            return None;
+        }
+        Some(Sym2 {
+            xx: self.yy / det,
+            xy: -self.xy / det,
+            yy: self.xx / det,
+        })
+    }
+
+    /// Eigenvalues (largest first) and unit eigenvectors. The eigenvector of the largest is the
+    /// longer of (xy, λ₁ − xx) and (λ₁ − yy, xy), which both solve the eigen-equation and are
+    /// never both near zero; with no spread, the axes.
+    #[must_use]
+    pub fn eigen(&self) -> ([f64; 2], [DVec2; 2]) {
+        let mean = 0.5 * (self.xx + self.yy);
+        let spread = (0.25 * (self.xx - self.yy).powi(2) + self.xy * self.xy).sqrt();
+        let largest = mean + spread;
+        let direction = if spread > 0.0 {
+            let (p, q) = (
+                DVec2::new(self.xy, largest - self.xx),
+                DVec2::new(largest - self.yy, self.xy),
+            );
+            if p.length_squared() > q.length_squared() {
+                p.normalize()
+            } else {
+                q.normalize()
+            }
+        } else {
+            DVec2::X
+        };
+        ([largest, mean - spread], [direction, direction.perp()])
+    }
+
+    /// The principal axes of a covariance, each scaled to its standard deviation (a negative
+    /// eigenvalue, from rounding, counts as zero).
+    #[must_use]
+    pub fn principal_axes(&self) -> (DVec2, DVec2) {
+        let ([major, minor], [a, b]) = self.eigen();
+        (a * major.sqrt(), b * minor.max(0.0).sqrt())
+    }
+}
+
+impl std::ops::Add for Sym2 {
+    type Output = Sym2;
+    fn add(self, o: Sym2) -> Sym2 {
+        Sym2 {
+            xx: self.xx + o.xx,
+            xy: self.xy + o.xy,
+            yy: self.yy + o.yy,
+        }
+    }
+}
+
+/// v vᵀ.
+#[must_use]
+pub fn outer3(v: DVec3) -> DMat3 {
+    DMat3::from_cols(v * v.x, v * v.y, v * v.z)
+}
+
+/// Unit eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, by cyclic Jacobi
+/// rotations: slower than a closed form but accurate even when eigenvalues nearly coincide.
+pub fn smallest_eigenvector(mut a: [[f64; 3]; 3]) -> DVec3 {
+    let mut vectors = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _sweep in 0..50 {
+        let off_diagonal = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+        let diagonal = a[0][0] * a[0][0] + a[1][1] * a[1][1] + a[2][2] * a[2][2];
+        if off_diagonal <= 1e-30 * diagonal {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q] == 0.0 {
+                continue;
+            }
+            let r = 3 - p - q;
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + theta.hypot(1.0));
+            let c = 1.0 / t.hypot(1.0);
+            let s = t * c;
+            a[p][p] -= t * a[p][q];
+            a[q][q] += t * a[p][q];
+            a[p][q] = 0.0;
+            a[q][p] = 0.0;
+            let (arp, arq) = (a[r][p], a[r][q]);
+            a[r][p] = c * arp - s * arq;
+            a[p][r] = a[r][p];
+            a[r][q] = s * arp + c * arq;
+            a[q][r] = a[r][q];
+            for row in &mut vectors {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let smallest = (0..3)
+        .min_by(|&i, &j| a[i][i].total_cmp(&a[j][j]))
+        .unwrap_or(0);
+    let column = DVec3::new(
+        vectors[0][smallest],
+        vectors[1][smallest],
+        vectors[2][smallest],
+    );
+    column.try_normalize().unwrap_or(DVec3::Z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn principal_axes_rebuild_the_covariance() {
+        for c in [
+            Sym2 {
+                xx: 2.0,
+                xy: 0.7,
+                yy: 0.5,
+            },
+            Sym2 {
+                xx: 0.5,
+                xy: -0.7,
+                yy: 2.0,
+            },
+            Sym2::isotropic(0.3),
+            Sym2 {
+                xx: 1.0,
+                xy: 0.0,
+                yy: 0.0,
+            },
+        ] {
+            let (a, b) = c.principal_axes();
+            let rebuilt = Sym2::outer(a) + Sym2::outer(b);
+            assert!(
+                (rebuilt.xx - c.xx).abs() < 1e-12
+                    && (rebuilt.xy - c.xy).abs() < 1e-12
+                    && (rebuilt.yy - c.yy).abs() < 1e-12,
+                "{c:?}"
+            );
+            assert!(a.dot(b).abs() < 1e-12 && a.length() >= b.length());
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! The scene model: a camera, a shutter, lighting, a background and objects, each a geometry
+//! with a keyframed motion. Build one in code with the validating constructors here, or read a
+//! scene file with [`Scene::load`] ([`crate::io::scene_file`]); either way every number is checked
+//! once, where the scene is built, and the renderers can trust it.
+
+pub mod camera;
+pub mod motion;
+pub mod shutter;
+
+pub use camera::{Camera, MAX_IMAGE_SIDE};
+pub use motion::{Keyframe, Motion, Pose};
+pub use shutter::{Shutter, ShutterShape};
+
+use crate::error::{Error, Result};
+use crate::surfels::Surfel;
+use glam::DVec3;
+use std::path::PathBuf;
+
+/// Largest colour component or light intensity accepted: values above 1 are bright (HDR), but
+/// past this they overflow the f32 colour buffers into infinities.
+pub const MAX_RADIANCE: f64 = 1e4;
+
+/// A directional light: `direction` points from the scene towards the light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Unit vector towards the light.
+    pub direction: DVec3,
+    /// Irradiance scale.
+    pub intensity: f64,
+}
+
+impl Light {
+    /// A light from `direction` (any length but zero; it is normalized) of `intensity` in
+    /// [0, [`MAX_RADIANCE`]]. Errors name `direction` or `intensity`.
+    pub fn new(direction: DVec3, intensity: f64) -> Result<Light> {
+        let direction = finite3("direction", direction)?
+            .try_normalize()
+            .ok_or_else(|| Error::invalid("direction", "must not be the zero vector"))?;
+        Ok(Light {
+            direction,
+            intensity: radiance("intensity", intensity)?,
+        })
+    }
+}
+
+/// Lambertian lighting; with no lights the scene is drawn unlit (colours as given).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Lighting {
+    /// Irradiance added everywhere.
+    pub ambient: f64,
+    /// Directional lights.
+    pub lights: Vec<Light>,
+}
+
+impl Lighting {
+    /// Ambient irradiance `ambient` in [0, [`MAX_RADIANCE`]] plus `lights` (made by
+    /// [`Light::new`]). An error names `ambient`.
+    pub fn new(ambient: f64, lights: Vec<Light>) -> Result<Lighting> {
+        Ok(Lighting {
+            ambient: radiance("ambient", ambient)?,
+            lights,
+        })
+    }
+
+    /// Whether any shading happens at all: a scene without a `[lighting]` table (no lights, no
+    /// ambient term) is drawn with its colours as given.
+    #[must_use]
+    pub fn is_lit(&self) -> bool {
+        !self.lights.is_empty() || self.ambient != 0.0
+    }
+
+    /// The colour of a surface of `albedo` with world-space unit normal `normal`.
+    #[must_use]
+    pub fn shade(&self, albedo: [f32; 3], normal: DVec3) -> [f32; 3] {
+        if !self.is_lit() {
+            return albedo;
+        }
+        let irradiance = self.ambient + self.direct(normal);
+        albedo.map(|c| c * irradiance as f32)
+    }
+
+    /// Irradiance from the lights alone on a surface with world-space unit normal `normal`:
+    /// Σ intensity · max(0, N·L).
+    #[must_use]
+    pub fn direct(&self, normal: DVec3) -> f64 {
+        self.lights
+            .iter()
+            .map(|l| l.intensity * normal.dot(l.direction).max(0.0))
+            .sum()
+    }
+}
+
+/// What an object is made of. Surfels today; the renderers of moving triangles and of 3D
+/// Gaussians will add their primitives here, each drawn natively by the methods that can and
+/// sampled into surfels by the others (docs/architecture.md, "Module tree").
+#[derive(Clone, Debug, PartialEq)]
+pub enum Geometry {
+    /// Oriented Gaussian disks in object space.
+    Surfels(Vec<Surfel>),
+}
+
+/// One object: its geometry in object space and its motion.
+#[derive(Clone, Debug)]
+pub struct Object {
+    /// Name (for messages and `--explain`).
+    pub name: String,
+    /// What it is made of, in object space.
+    pub geometry: Geometry,
+    /// Keyframed pose over the frame.
+    pub motion: Motion,
+}
+
+impl Object {
+    /// An object called `name` made of `surfels` (from a [`crate::surfels`] source), moving as
+    /// `motion` says.
+    #[must_use]
+    pub fn new(name: impl Into<String>, surfels: Vec<Surfel>, motion: Motion) -> Object {
+        Object {
+            name: name.into(),
+            geometry: Geometry::Surfels(surfels),
+            motion,
+        }
+    }
+
+    /// The surfels the splat renderers draw.
+    #[must_use]
+    pub fn surfels(&self) -> &[Surfel] {
+        match &self.geometry {
+            Geometry::Surfels(surfels) => surfels,
+        }
+    }
+}
+
+/// A validated scene, ready to plan and render.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The file it came from, if any (for messages and the study's cache).
+    pub source: Option<PathBuf>,
+    /// The camera and image size.
+    pub camera: Camera,
+    /// Linear RGB.
+    pub background: [f32; 3],
+    /// When the shutter is open and how it weights time.
+    pub shutter: Shutter,
+    /// Lights (none: unlit).
+    pub lighting: Lighting,
+    /// The objects, in order.
+    pub objects: Vec<Object>,
+    /// The style file `hint` uses unless told otherwise, resolved against the scene's folder.
+    pub style: Option<PathBuf>,
+}
+
+impl Scene {
+    /// A scene seen by `camera`: white background, the default shutter (box, open the whole
+    /// frame), unlit, no objects yet.
+    #[must_use]
+    pub fn new(camera: Camera) -> Scene {
+        Scene {
+            source: None,
+            camera,
+            background: [1.0; 3],
+            shutter: Shutter::default(),
+            lighting: Lighting::default(),
+            objects: Vec::new(),
+            style: None,
+        }
+    }
+
+    /// The same scene on a background of linear RGB `colour` (each component in
+    /// [0, [`MAX_RADIANCE`]]); an error names `background[i]`.
+    pub fn with_background(mut self, colour: [f64; 3]) -> Result<Scene> {
+        self.background = rgb("background", colour)?;
+        Ok(self)
+    }
+
+    /// The same scene with `shutter` (made by [`Shutter::new`]).
+    #[must_use]
+    pub fn with_shutter(mut self, shutter: Shutter) -> Scene {
+        self.shutter = shutter;
+        self
+    }
+
+    /// The same scene lit by `lighting` (made by [`Lighting::new`]).
+    #[must_use]
+    pub fn with_lighting(mut self, lighting: Lighting) -> Scene {
+        self.lighting = lighting;
+        self
+    }
+
+    /// The same scene with `object` added.
+    #[must_use]
+    pub fn with_object(mut self, object: Object) -> Scene {
+        self.objects.push(object);
+        self
+    }
+
+    /// Total number of surfels.
+    #[must_use]
+    pub fn surfel_count(&self) -> usize {
+        self.objects.iter().map(|o| o.surfels().len()).sum()
+    }
+}
+
+/// A finite number, or an error naming `field`.
+pub(crate) fn finite(field: &str, v: f64) -> Result<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Error::invalid(field, format!("{v} is not a finite number")))
+    }
+}
+
+/// A finite vector, or an error naming the component `field[i]`.
+pub(crate) fn finite3(field: &str, v: DVec3) -> Result<DVec3> {
+    for (i, c) in v.to_array().iter().enumerate() {
+        finite(&format!("{field}[{i}]"), *c)?;
+    }
+    Ok(v)
+}
+
+/// A finite number greater than zero, or an error naming `field`.
+pub(crate) fn positive(field: &str, v: f64) -> Result<f64> {
+    if finite(field, v)? > 0.0 {
+        Ok(v)
+    } else {
+        Err(Error::invalid(
+            field,
+            format!("must be greater than zero, not {v}"),
+        ))
+    }
+}
+
+/// A value in [0, [`MAX_RADIANCE`]] (as f64), or an error naming `field` that shows `v` as
+/// given.
+fn radiance<T: Copy + Into<f64> + std::fmt::Display>(field: &str, v: T) -> Result<f64> {
+    let x: f64 = v.into();
+    if !x.is_finite() {
+        Err(Error::invalid(field, format!("{v} is not a finite number")))
+    } else if (0.0..=MAX_RADIANCE).contains(&x) {
+        Ok(x)
+    } else {
+        Err(Error::invalid(
+            field,
+            format!("{v}: must be between 0 and {MAX_RADIANCE} (linear)"),
+        ))
+    }
+}
+
+/// A linear RGB colour, each component in [0, [`MAX_RADIANCE`]], or an error naming the
+/// component `field[i]`.
+pub(crate) fn rgb<T: Copy + Into<f64> + std::fmt::Display>(
+    field: &str,
+    v: [T; 3],
+) -> Result<[f32; 3]> {
+    let mut colour = [0.0f32; 3];
+    for (i, c) in v.iter().enumerate() {
+        colour[i] = radiance(&format!("{field}[{i}]"), *c)? as f32;
+    }
+    Ok(colour)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lighting_shades_by_the_cosine_law() {
+        let lighting = Lighting::new(0.1, vec![Light::new(DVec3::Z, 0.8).unwrap()]).unwrap();
+        let lit = lighting.shade([1.0, 0.5, 0.0], DVec3::new(0.0, 0.6, 0.8));
+        assert!((lit[0] - (0.1 + 0.8 * 0.8)).abs() < 1e-6 && (lit[1] - 0.5 * 0.74).abs() < 1e-6);
+        assert_eq!(
+            lighting.shade([1.0; 3], -DVec3::Z),
+            [0.1; 3].map(|c: f64| c as f32)
+        );
+    }
+
+    #[test]
+    fn constructors_name_what_is_wrong() {
+        let error = |r: Result<Lighting>| r.unwrap_err().to_string();
+        assert_eq!(
+            error(Lighting::new(-1.0, Vec::new())),
+            "ambient: -1: must be between 0 and 10000 (linear)"
+        );
+        let message = Light::new(DVec3::ZERO, 1.0).unwrap_err().to_string();
+        assert!(message.starts_with("direction: "), "{message}");
+        let message = Light::new(DVec3::new(f64::NAN, 0.0, 1.0), 1.0)
+            .unwrap_err()
+            .to_string();
+        assert!(message.starts_with("direction[0]: "), "{message}");
+        let camera = Camera::new(DVec3::Z, DVec3::ZERO, DVec3::Y, 40.0, 8, 8).unwrap();
+        let message = Scene::new(camera)
+            .with_background([0.0, 2e4, 0.0])
+            .unwrap_err()
+            .to_string();
+        assert!(message.starts_with("background[1]: "), "{message}");
+    }
+}
