@@ -1,11 +1,12 @@
-//! The shared projection stage: a surfel at an instant → what the camera sees of it.
+//! The shared projection stage: a surfel at an instant → what the camera sees of it, and the two
+//! footprints made of such views: the sharp EWA splat ([`static_footprint`]) and the motion
+//! ellipse of a sub-segment ([`motion_ellipse`], Guan & Mueller §3.3).
 //!
 //! Every splat renderer asks this module where a surfel is on screen at time t, with which
-//! screen covariance (Σ = J W V Wᵀ Jᵀ, DESIGN.md "Projected splat covariance"; the pre-filter
-//! is added by the caller, who may add motion first), how much screen area it covers, how deep
-//! it is and which colour it has after shading. This is the only visibility gate before the
-//! rasterizer: points behind the near plane are not projected, and the caller culls back faces
-//! and off-screen footprints, counting each in [`Culled`].
+//! screen covariance (Σ = J W V Wᵀ Jᵀ, docs/math.md "Projected splat covariance"), how much
+//! screen area it covers, how deep it is and which colour it has after shading. This is the only
+//! visibility gate before the rasterizer: points behind the near plane are not projected, and
+//! back faces and off-screen footprints are culled, each counted in [`Culled`].
 
 use crate::math::Sym2;
 use crate::raster::{
@@ -13,6 +14,7 @@ use crate::raster::{
 };
 use crate::scene::camera::Camera;
 use crate::scene::motion::Pose;
+use crate::scene::shutter::{Shutter, TimeMoments};
 use crate::scene::{Lighting, Object};
 use crate::surfels::Surfel;
 use glam::{DAffine3, DMat3, DVec2, DVec3};
@@ -240,6 +242,107 @@ pub fn object_footprints_at(
     for result in results {
         culled.keep(result, footprints);
     }
+}
+
+/// Depth gradient of a motion ellipse. A pixel on the chord is covered when the moving splat
+/// passes over it, so along the chord depth follows the surfel (Δd over the chord length) and
+/// across it the splat plane's gradient holds. When the chord is short against the splat's own
+/// spread σ along it, the footprint is mostly the splat, so the along-chord slope blends from the
+/// plane's to the streak's as f = chord² / (chord² + (2σ)²).
+fn streak_depth_gradient(plane: DVec2, chord: DVec2, depth_change: f64, splat: Sym2) -> DVec2 {
+    let chord_sq = chord.length_squared();
+    if !(chord_sq > 0.0) {
+        return plane;
+    }
+    let length = chord_sq.sqrt();
+    let along = chord / length;
+    let f = chord_sq / (chord_sq + 4.0 * splat.quadratic(along));
+    plane + along * ((depth_change / length - plane.dot(along)) * f)
+}
+
+/// Share of a sub-segment during which a surfel faces the camera, taking its facing cosine to
+/// change linearly between the ends.
+fn front_facing_share(a: f64, b: f64) -> f64 {
+    match (a > 0.0, b > 0.0) {
+        (true, true) => 1.0,
+        (false, false) => 0.0,
+        (true, false) => a / (a - b),
+        (false, true) => b / (b - a),
+    }
+}
+
+/// The motion ellipse of one surfel over [t0, t1] of the exposure `shutter`, seen as `a` at t0 and
+/// `b` at t1, with the shutter `moments` of the interval; `chained` when it is one of several
+/// consecutive sub-segments.
+pub(crate) fn motion_ellipse(
+    shutter: &Shutter,
+    a: &SurfelView,
+    b: &SurfelView,
+    [t0, t1]: [f64; 2],
+    moments: &TimeMoments,
+    chained: bool,
+) -> Result<ScreenSplat, Cull> {
+    let facing = front_facing_share(a.facing, b.facing);
+    if !(facing > 0.0) {
+        return Err(Cull::BackFacing);
+    }
+    let (a, b) = (&a.splat, &b.splat);
+    let s = ((moments.mean - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let lerp = |x: f64, y: f64| x + (y - x) * s;
+    let chord = b.center - a.center;
+    let splat = Sym2 {
+        xx: lerp(a.covariance.xx, b.covariance.xx),
+        xy: lerp(a.covariance.xy, b.covariance.xy),
+        yy: lerp(a.covariance.yy, b.covariance.yy),
+    } + Sym2::isotropic(PREFILTER_VARIANCE_PX2);
+    let duration = t1 - t0;
+    let uniform_variance = moments.variance / (duration * duration);
+    let mut motion_variance = uniform_variance;
+    let chord_sq = chord.length_squared();
+    // Variance of the splat along the chord, in chord lengths squared (∞ without motion).
+    let along = if chord_sq > 0.0 {
+        splat.quadratic(chord) / (chord_sq * chord_sq)
+    } else {
+        f64::INFINITY
+    };
+    if chained && along.is_finite() {
+        motion_variance = motion_variance.max(0.25 - along);
+    }
+    // A pixel on the chord is covered while the splat passes: about √3 standard deviations of
+    // the splat either side of its passing time (a box of the same variance), within the
+    // sub-segment. Widening spreads a chained ellipse past its chord's ends, into its neighbours'
+    // time; the span grows by as much (√3 × the added standard deviation), or that coverage would
+    // pile into the sub-segment's first and last bins.
+    let reach = (3.0 * (motion_variance - uniform_variance)).sqrt() * duration;
+    let time = TimeExtent {
+        center: moments.mean,
+        gradient: if chord_sq > 0.0 {
+            chord * (duration / chord_sq)
+        } else {
+            DVec2::ZERO
+        },
+        half_width: (3.0 * along).sqrt().min(1.0) * duration,
+        span: [
+            (t0 - reach).max(shutter.open),
+            (t1 + reach).min(shutter.close),
+        ],
+    };
+    Ok(ScreenSplat {
+        center: a.center + chord * s,
+        covariance: splat + Sym2::outer(chord).scaled(motion_variance),
+        weight: lerp(a.weight, b.weight) * moments.mass * facing,
+        colour: [0, 1, 2].map(|c| lerp(f64::from(a.colour[c]), f64::from(b.colour[c])) as f32),
+        depth: lerp(a.depth, b.depth),
+        depth_gradient: streak_depth_gradient(
+            a.depth_gradient.lerp(b.depth_gradient, s),
+            chord,
+            b.depth - a.depth,
+            splat,
+        ),
+        depth_tolerance: a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs(),
+        time,
+        ..*a
+    })
 }
 
 #[cfg(test)]

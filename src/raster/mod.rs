@@ -15,6 +15,7 @@
 
 mod composite;
 mod profile;
+mod tiles;
 
 pub use composite::TimeBins;
 pub use profile::{Profile, Texture};
@@ -25,6 +26,7 @@ use composite::PixelState;
 use glam::DVec2;
 use profile::Sampler;
 use rayon::prelude::*;
+pub(crate) use tiles::{TileGrid, TileLists};
 
 /// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², DESIGN.md).
 /// 0.3 px² keeps every footprint at least ~0.55 px wide, so sampling at pixel centres sums even the
@@ -238,7 +240,7 @@ impl Footprint {
     /// footprint reaches. A long tilted motion ellipse crosses a thin diagonal band of its bounding
     /// box's tiles, so footprints spanning at least three tile rows and columns are binned by the
     /// row spans of each tile row; smaller ones take their whole box, which costs less to find.
-    fn for_each_tile(&self, tiles_x: usize, mut visit: impl FnMut(usize)) {
+    fn for_each_tile(&self, grid: &TileGrid, visit: &mut dyn FnMut(usize)) {
         let [x0, y0, x1, y1] = self.bounds;
         let (tx0, tx1) = (x0 / TILE_PX, (x1 - 1) / TILE_PX);
         let (ty0, ty1) = (y0 / TILE_PX, (y1 - 1) / TILE_PX);
@@ -253,7 +255,7 @@ impl Footprint {
             };
             if lo < hi {
                 for tx in lo / TILE_PX..=(hi - 1) / TILE_PX {
-                    visit(ty as usize * tiles_x + tx as usize);
+                    visit(grid.index(tx, ty));
                 }
             }
         }
@@ -397,8 +399,7 @@ pub fn rasterize<const B: usize>(
     bins: &TimeBins<B>,
 ) -> (Layer, RasterStats) {
     let (width, height) = (target.width, target.height);
-    let tiles_x = width.div_ceil(TILE_PX) as usize;
-    let tiles_y = height.div_ceil(TILE_PX) as usize;
+    let grid = TileGrid::new(width, height);
 
     // Depth order with the index as tie-break: a total order, so the sort is deterministic.
     let mut order: Vec<u32> = (0..footprints.len() as u32).collect();
@@ -408,30 +409,20 @@ pub fn rasterize<const B: usize>(
             .total_cmp(&footprints[b as usize].depth)
             .then(a.cmp(&b))
     });
+    let lists = TileLists::new(&grid, &order, |index, visit| {
+        footprints[index as usize].for_each_tile(&grid, visit);
+    });
 
-    // Bin into a compressed per-tile list (counts, offsets, entries), in depth order.
-    let mut starts = vec![0usize; tiles_x * tiles_y + 1];
-    for f in footprints {
-        f.for_each_tile(tiles_x, |tile| starts[tile + 1] += 1);
-    }
-    for i in 1..starts.len() {
-        starts[i] += starts[i - 1];
-    }
-    let mut fill = starts.clone();
-    let mut entries = vec![0u32; starts[tiles_x * tiles_y]];
-    for &index in &order {
-        footprints[index as usize].for_each_tile(tiles_x, |tile| {
-            entries[fill[tile]] = index;
-            fill[tile] += 1;
-        });
-    }
-
-    let blocks: Vec<Vec<PixelOut>> = (0..tiles_x * tiles_y)
+    let blocks: Vec<Vec<PixelOut>> = (0..grid.count())
         .into_par_iter()
         .map(|tile| {
-            let (tx, ty) = ((tile % tiles_x) as u32, (tile / tiles_x) as u32);
-            let list = &entries[starts[tile]..starts[tile + 1]];
-            render_tile(footprints, list, [tx * TILE_PX, ty * TILE_PX], target, bins)
+            render_tile(
+                footprints,
+                lists.list(tile),
+                grid.pixels(tile),
+                target,
+                bins,
+            )
         })
         .collect();
 
@@ -443,25 +434,15 @@ pub fn rasterize<const B: usize>(
         transmittance: vec![1.0; size],
         front_depth: vec![f32::INFINITY; size],
     };
-    for (tile, block) in blocks.iter().enumerate() {
-        let (x0, y0) = (
-            (tile % tiles_x) as u32 * TILE_PX,
-            (tile / tiles_x) as u32 * TILE_PX,
-        );
-        let w = TILE_PX.min(width - x0) as usize;
-        for (row, chunk) in block.chunks(w).enumerate() {
-            let start = (y0 as usize + row) * width as usize + x0 as usize;
-            for (i, out) in chunk.iter().enumerate() {
-                layer.colour[start + i] = out.colour;
-                layer.transmittance[start + i] = out.transmittance;
-                layer.front_depth[start + i] = out.front_depth;
-            }
-        }
-    }
+    grid.scatter(&blocks, |pixel, out| {
+        layer.colour[pixel] = out.colour;
+        layer.transmittance[pixel] = out.transmittance;
+        layer.front_depth[pixel] = out.front_depth;
+    });
     let stats = RasterStats {
         footprints: footprints.len(),
-        tile_entries: entries.len(),
-        max_per_tile: starts.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0),
+        tile_entries: lists.entries(),
+        max_per_tile: lists.longest(),
     };
     (layer, stats)
 }
@@ -478,12 +459,10 @@ struct PixelOut {
 fn render_tile<const B: usize>(
     footprints: &[Footprint],
     list: &[u32],
-    [x0, y0]: [u32; 2],
+    [x0, y0, x1, y1]: [u32; 4],
     target: &Target,
     bins: &TimeBins<B>,
 ) -> Vec<PixelOut> {
-    let x1 = (x0 + TILE_PX).min(target.width);
-    let y1 = (y0 + TILE_PX).min(target.height);
     let w = (x1 - x0) as usize;
     let mut pixels = vec![PixelState::<B>::EMPTY; w * (y1 - y0) as usize];
     for &index in list {

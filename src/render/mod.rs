@@ -10,6 +10,7 @@
 //! - [`Method::Kernel3d`]: 3D spatio-temporal kernels integrated along each pixel ray, with exact
 //!   temporal visibility (Heinzle et al. 2010).
 
+mod abuffer;
 mod blur;
 mod hint;
 mod kernel3d;

@@ -25,12 +25,12 @@
 
 mod speed_lines;
 
-use super::blur::{motion_ellipse, TIME_BINS};
+use super::blur::TIME_BINS;
 use super::{MethodStats, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
-    per_surfel, static_footprint, view_surfel, Cull, Culled, Instant, SurfelView,
+    motion_ellipse, per_surfel, static_footprint, view_surfel, Cull, Culled, Instant, SurfelView,
 };
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
 use crate::scene::shutter::{Shutter, ShutterShape};
@@ -295,11 +295,11 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             let (layer, raster) = draw_trails(&trail_footprints, &trail_target, trail);
             stats.add_raster(&raster);
             image = layer.over(&image);
-            line_layer.composite_over(&mut image.pixels);
+            image = line_layer.over(&image);
             image = drawn_layer.over(&image);
         }
         Composite::Merged => {
-            line_layer.composite_over(&mut image.pixels);
+            image = line_layer.over(&image);
             image = drawn_layer.over(&image);
             trail_target.occluder = Some(&drawn_layer.front_depth);
             let (layer, raster) = draw_trails(&trail_footprints, &trail_target, trail);

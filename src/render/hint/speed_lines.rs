@@ -42,6 +42,7 @@
 //!   the ribbon. So points at ±1e9 px draw their visible part, and tiny-skia
 //!   only sees small coordinates. Bad geometry draws nothing and never panics.
 
+use crate::raster::Layer;
 use glam::DVec2;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
 
@@ -70,10 +71,10 @@ pub struct LineLook {
     pub opacity: f64,
 }
 
-/// Lines drawn into a layer of linear, premultiplied RGBA
-/// (alpha = coverage × opacity).
+/// Lines drawn into linear, premultiplied RGBA (alpha = coverage × opacity), the form in which
+/// each line is composited over the ones before it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct LineLayer {
+struct Strokes {
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
@@ -102,12 +103,35 @@ const AA_REACH_PX: f64 = 1.0;
 /// Draws `lines` into a new `width × height` layer, in slice order, each
 /// composited "over" the ones before it.
 ///
-/// Bad lines are skipped (see the module docs). A zero-sized image gives an
-/// empty layer. If the layer cannot be allocated, the result is an empty
-/// 0 × 0 layer.
+/// Bad lines are skipped (see the module docs). If the strokes cannot be
+/// allocated, the layer is clear.
 #[must_use]
-pub fn draw(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> LineLayer {
-    let mut layer = LineLayer::transparent(width, height);
+pub fn draw(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Layer {
+    let strokes = strokes(lines, look, width, height);
+    let size = width as usize * height as usize;
+    let mut layer = Layer {
+        width,
+        height,
+        colour: vec![[0.0; 3]; size],
+        transmittance: vec![1.0; size],
+        front_depth: vec![f32::INFINITY; size],
+    };
+    for ((colour, transmittance), px) in layer
+        .colour
+        .iter_mut()
+        .zip(&mut layer.transmittance)
+        .zip(&strokes.pixels)
+    {
+        *colour = [px[0], px[1], px[2]];
+        *transmittance = 1.0 - px[3];
+    }
+    layer
+}
+
+/// The strokes of `lines`, as [`draw`] composites them. A zero-sized image gives empty strokes,
+/// and so does one whose strokes cannot be allocated (0 × 0).
+fn strokes(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Strokes {
+    let mut layer = Strokes::transparent(width, height);
     let Some(style) = Style::new(look) else {
         return layer;
     };
@@ -120,25 +144,11 @@ pub fn draw(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Li
     layer
 }
 
-impl LineLayer {
-    /// Composites the layer over `below` (linear RGB, row-major
-    /// `width × height`): `out = src + (1 − α)·below`.
-    ///
-    /// If the lengths differ, only the pixels the two have in common are
-    /// composited.
-    pub fn composite_over(&self, below: &mut [[f32; 3]]) {
-        for (dst, src) in below.iter_mut().zip(&self.pixels) {
-            let keep = 1.0 - src[3];
-            for (d, s) in dst.iter_mut().zip(src) {
-                *d = s + keep * *d;
-            }
-        }
-    }
-
+impl Strokes {
     /// A fully transparent layer, or an empty 0 × 0 one if it cannot be
     /// allocated.
     fn transparent(width: u32, height: u32) -> Self {
-        let empty = LineLayer {
+        let empty = Strokes {
             width: 0,
             height: 0,
             pixels: Vec::new(),
@@ -151,7 +161,7 @@ impl LineLayer {
             return empty;
         }
         pixels.resize(count, [0.0; 4]);
-        LineLayer {
+        Strokes {
             width,
             height,
             pixels,
@@ -629,26 +639,26 @@ mod tests {
 
     const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
 
-    fn alpha(layer: &LineLayer, x: u32, y: u32) -> f32 {
+    fn alpha(layer: &Strokes, x: u32, y: u32) -> f32 {
         layer.pixels[(y * layer.width + x) as usize][3]
     }
 
-    fn column_sum(layer: &LineLayer, x: u32) -> f32 {
+    fn column_sum(layer: &Strokes, x: u32) -> f32 {
         (0..layer.height).map(|y| alpha(layer, x, y)).sum()
     }
 
-    fn column_peak(layer: &LineLayer, x: u32) -> f32 {
+    fn column_peak(layer: &Strokes, x: u32) -> f32 {
         (0..layer.height)
             .map(|y| alpha(layer, x, y))
             .fold(0.0, f32::max)
     }
 
     /// The pixel containing `p`.
-    fn alpha_at(layer: &LineLayer, p: DVec2) -> f32 {
+    fn alpha_at(layer: &Strokes, p: DVec2) -> f32 {
         alpha(layer, p.x.floor() as u32, p.y.floor() as u32)
     }
 
-    fn assert_sane(layer: &LineLayer) {
+    fn assert_sane(layer: &Strokes) {
         assert_eq!(
             layer.pixels.len(),
             layer.width as usize * layer.height as usize
@@ -706,7 +716,7 @@ mod tests {
     // within ~10 %.
     #[test]
     fn straight_line_has_the_right_width_opacity_extent_and_colour() {
-        let layer = draw(&[straight_line(WHITE)], &TAPERED, 240, 100);
+        let layer = strokes(&[straight_line(WHITE)], &TAPERED, 240, 100);
         assert_sane(&layer);
         let s = style(&TAPERED);
 
@@ -756,7 +766,7 @@ mod tests {
 
     #[test]
     fn column_sums_decrease_from_newest_to_oldest() {
-        let layer = draw(&[straight_line(WHITE)], &TAPERED, 240, 100);
+        let layer = strokes(&[straight_line(WHITE)], &TAPERED, 240, 100);
         let sums: Vec<f32> = (22..=197)
             .rev()
             .step_by(15)
@@ -775,7 +785,7 @@ mod tests {
             points: (0..32).map(|i| at(f64::from(i) / 31.0)).collect(),
             colour: WHITE,
         };
-        let layer = draw(&[line], &TAPERED, 240, 240);
+        let layer = strokes(&[line], &TAPERED, 240, 240);
         assert_sane(&layer);
         // From just past the butt oldest end to the newest end.
         for i in 1..=40 {
@@ -807,7 +817,7 @@ mod tests {
             fade: 0.0,
             opacity: 1.0,
         };
-        let layer = draw(&[line], &look, 200, 200);
+        let layer = strokes(&[line], &look, 200, 200);
         for f in [0.1, 0.25, 0.5, 0.75, 0.9] {
             let got = alpha_at(&layer, at(f));
             assert!((f64::from(got) - f).abs() < 0.01, "f = {f}: alpha {got}");
@@ -830,7 +840,7 @@ mod tests {
             points: vec![DVec2::new(50.5, 10.0), DVec2::new(50.5, 90.0)],
             colour: [0.0, 1.0, 0.0],
         };
-        let layer = draw(&[red, green], &look, 100, 100);
+        let layer = strokes(&[red, green], &look, 100, 100);
         let px = |x: u32, y: u32| layer.pixels[(y * 100 + x) as usize];
         // Red alone: colour × alpha.
         let only_red = px(20, 50);
@@ -849,7 +859,7 @@ mod tests {
     }
 
     #[test]
-    fn composite_over_shows_background_where_clear_and_colour_where_opaque() {
+    fn the_layer_shows_background_where_clear_and_colour_where_opaque() {
         let colour = [0.9, 0.1, 0.5];
         let look = LineLook {
             width: 6.0,
@@ -862,10 +872,11 @@ mod tests {
             points: vec![DVec2::new(10.0, 50.25), DVec2::new(90.0, 50.25)],
             colour,
         };
-        let layer = draw(&[line], &look, 100, 100);
+        let layer = strokes(std::slice::from_ref(&line), &look, 100, 100);
         let background = [0.2, 0.3, 0.4];
-        let mut image = vec![background; 100 * 100];
-        layer.composite_over(&mut image);
+        let image = draw(&[line], &look, 100, 100)
+            .over_colour(background)
+            .pixels;
         assert_eq!(image[10 * 100 + 50], background);
         for (got, want) in image[50 * 100 + 50].iter().zip(colour) {
             assert!((got - want).abs() < 1e-6);
@@ -909,7 +920,7 @@ mod tests {
             points: points.clone(),
             colour: WHITE,
         };
-        let layer = draw(&[line], &look, 200, 130);
+        let layer = strokes(&[line], &look, 200, 130);
         assert_sane(&layer);
         for y in 0..layer.height {
             for x in 0..layer.width {
@@ -962,7 +973,7 @@ mod tests {
                 points: points.clone(),
                 colour: WHITE,
             };
-            let layer = draw(&[line], &look, size, size);
+            let layer = strokes(&[line], &look, size, size);
             let h = look.width / 2.0;
             for y in 0..size {
                 for x in 0..size {
@@ -989,7 +1000,7 @@ mod tests {
             points: vec![DVec2::new(-1e9, 50.5), DVec2::new(1e9, 50.5)],
             colour: WHITE,
         };
-        let layer = draw(&[line], &TAPERED, 200, 100);
+        let layer = strokes(&[line], &TAPERED, 200, 100);
         assert_sane(&layer);
         // Half way along: width 6·(0.25 + 0.75/2) = 3.75, opacity 0.6.
         let sum = column_sum(&layer, 100);
@@ -1060,12 +1071,12 @@ mod tests {
         ];
         for look in &looks {
             for (width, height) in [(64, 48), (0, 48), (64, 0), (1, 1)] {
-                assert_sane(&draw(&lines, look, width, height));
+                assert_sane(&strokes(&lines, look, width, height));
             }
         }
-        let huge = draw(&lines, &TAPERED, u32::MAX, u32::MAX);
+        let huge = strokes(&lines, &TAPERED, u32::MAX, u32::MAX);
         assert!(huge.pixels.is_empty());
-        let empty = draw(&lines, &TAPERED, 0, 100);
+        let empty = strokes(&lines, &TAPERED, 0, 100);
         assert_eq!((empty.width, empty.height, empty.pixels.len()), (0, 100, 0));
     }
 
@@ -1082,11 +1093,11 @@ mod tests {
                 colour: [0.9, 0.2, 0.1],
             },
         ];
-        let bits = |layer: LineLayer| -> Vec<u32> {
+        let bits = |layer: Strokes| -> Vec<u32> {
             layer.pixels.iter().flatten().map(|c| c.to_bits()).collect()
         };
-        let first = bits(draw(&lines, &TAPERED, 240, 100));
-        assert_eq!(first, bits(draw(&lines, &TAPERED, 240, 100)));
+        let first = bits(strokes(&lines, &TAPERED, 240, 100));
+        assert_eq!(first, bits(strokes(&lines, &TAPERED, 240, 100)));
         assert!(first.iter().any(|&b| b != 0));
     }
 }

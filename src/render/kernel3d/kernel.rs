@@ -5,10 +5,11 @@
 //! sub-frame's motion m, so that kernel time s ∈ [−1, 1] spans the sub-frame): at time s the
 //! splat sits at c + s·a3. Everything is in camera space and f64.
 
-use super::integral::{Primitive, RayQuadratic};
+use super::integral::RayQuadratic;
 use crate::math::Sym2;
 use crate::project::plane_depth_gradient;
 use crate::raster::{CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2, TRUNCATION_GAIN};
+use crate::render::abuffer::{Coverage, Fragment};
 use crate::scene::camera::Camera;
 use glam::{DVec2, DVec3};
 
@@ -87,58 +88,6 @@ impl AffineKernel {
             let c = self.centre + self.half_motion * sign;
             [c.x - half.x, c.y - half.y, c.x + half.x, c.y + half.y]
         })
-    }
-}
-
-/// What a kernel leaves on one pixel: the part of its time on the ray and how it weighs.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Fragment {
-    /// The covered interval on the shutter-mass axis.
-    pub mass: [f64; 2],
-    /// The kernel's own interval on that axis (maps mass to kernel time s).
-    kernel_mass: [f64; 2],
-    /// Antiderivative of the kernel along the ray, in kernel time.
-    primitive: Primitive,
-    /// Coverage density at the splat centre × shutter mass per unit of kernel time.
-    scale: f64,
-    /// Depth along the ray at the interval's ends.
-    pub depth: [f64; 2],
-    /// Linear RGB.
-    pub colour: [f32; 3],
-    /// Depth distance within which another fragment counts as the same surface.
-    pub tolerance: f64,
-    /// Kernel index: a total order for ties.
-    pub kernel: u32,
-}
-
-impl Fragment {
-    /// Kernel time at shutter mass `m`.
-    fn time(&self, m: f64) -> f64 {
-        let [k0, k1] = self.kernel_mass;
-        -1.0 + 2.0 * (m - k0) / (k1 - k0)
-    }
-
-    /// Coverage × shutter mass from the start of the kernel's time to `m` (within the
-    /// fragment's interval), up to a constant: differences are the closed-form integral of the
-    /// kernel along the ray over that part of its time (§4.2).
-    pub fn cumulative(&self, m: f64) -> f64 {
-        self.scale * self.primitive.at(self.time(m))
-    }
-
-    /// Coverage × mass over the part of the fragment within `window`, and that part's interval.
-    pub fn within(&self, window: [f64; 2]) -> Option<(f64, [f64; 2])> {
-        let (m0, m1) = (self.mass[0].max(window[0]), self.mass[1].min(window[1]));
-        (m1 > m0).then(|| (self.cumulative(m1) - self.cumulative(m0), [m0, m1]))
-    }
-
-    /// Depth along the ray at shutter mass `m`.
-    pub fn depth_at(&self, m: f64) -> f64 {
-        let [m0, m1] = self.mass;
-        if m1 > m0 {
-            self.depth[0] + (self.depth[1] - self.depth[0]) * ((m - m0) / (m1 - m0))
-        } else {
-            self.depth[0]
-        }
     }
 }
 
@@ -387,13 +336,15 @@ impl Prepared<'_> {
         let to_mass = |s: f64| k0 + 0.5 * (s + 1.0) * (k1 - k0);
         let fragment = Fragment {
             mass: [to_mass(s0), to_mass(s1)],
-            kernel_mass: k.mass,
-            primitive: quadratic.primitive([s0, s1]),
-            scale: amplitude * 0.5 * (k1 - k0),
+            coverage: Coverage::Kernel {
+                kernel_mass: k.mass,
+                primitive: quadratic.primitive([s0, s1]),
+                scale: amplitude * 0.5 * (k1 - k0),
+            },
             depth: [depth0 + s0 * depth1, depth0 + s1 * depth1],
             colour: k.colour,
             tolerance,
-            kernel: self.index,
+            id: self.index,
         };
         (fragment.mass[1] > fragment.mass[0] && fragment.depth.iter().all(|d| d.is_finite()))
             .then_some(fragment)

@@ -19,19 +19,18 @@
 //! consecutive sub-frames add up to the shutter exactly, so a single sub-frame of linear motion is
 //! already the exact time integral, and zero motion is the static splat.
 
-mod abuffer;
-mod integral;
+pub(super) mod integral;
 mod kernel;
 
 use super::{instant_layer, MethodStats, Render, Stats, Subframes};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{Cull, Culled, Instant};
-use crate::raster::{Rejection, TILE_PX};
+use crate::raster::{Rejection, TileGrid, TileLists, TILE_PX};
+use crate::render::abuffer::{resolve_approximate, resolve_exact, Fragment, Resolved};
 use crate::scene::{Object, Scene};
-use abuffer::{resolve_approximate, resolve_exact, Resolved};
 use glam::{DVec2, DVec3};
-use kernel::{hull_overlaps, Fragment, Kernel};
+use kernel::{hull_overlaps, Kernel};
 use rayon::prelude::*;
 
 /// How fragments are resolved.
@@ -129,48 +128,40 @@ pub(super) fn render(
             .map(|&t| instant_layer(scene, t, &mut Stats::default()).front_depth)
             .collect()
     });
+    let grid = TileGrid::new(width, height);
     let off_screen = stats.culled.off_screen;
-    let (tiles, bounds) = bin(scene, &kernels, &mut stats.culled);
+    let (lists, bounds) = bin(scene, &grid, &kernels, &mut stats.culled);
     kernel3d.kernels = kernels.len() - (stats.culled.off_screen - off_screen);
-    let tiles_x = width.div_ceil(TILE_PX) as usize;
-    let results: Vec<(Vec<Resolved>, usize, usize)> = tiles
-        .par_iter()
-        .enumerate()
-        .map(|(tile, list)| {
-            let origin = [
-                (tile % tiles_x) as u32 * TILE_PX,
-                (tile / tiles_x) as u32 * TILE_PX,
-            ];
+    let results: Vec<(Vec<Resolved>, usize, usize)> = (0..grid.count())
+        .into_par_iter()
+        .map(|tile| {
             let work = TileWork {
                 kernels: &kernels,
                 bounds: &bounds,
-                list,
+                list: lists.list(tile),
             };
             resolve_tile(
                 scene,
                 &work,
-                origin,
+                grid.pixels(tile),
                 exposure,
                 &windows,
                 visible_depth.as_deref(),
             )
         })
         .collect();
+    let mut blocks = Vec::with_capacity(results.len());
+    for (resolved, count, peak_pixel) in results {
+        kernel3d.fragments += count;
+        kernel3d.peak_fragments_per_pixel = kernel3d.peak_fragments_per_pixel.max(peak_pixel);
+        kernel3d.peak_fragments_per_tile = kernel3d.peak_fragments_per_tile.max(count);
+        blocks.push(resolved);
+    }
     let bg = scene.background.map(f64::from);
     let mut pixels = vec![[0.0f32; 3]; width as usize * height as usize];
-    for (tile, (resolved, count, peak_pixel)) in results.iter().enumerate() {
-        let k = &mut kernel3d;
-        k.fragments += count;
-        k.peak_fragments_per_pixel = k.peak_fragments_per_pixel.max(*peak_pixel);
-        k.peak_fragments_per_tile = k.peak_fragments_per_tile.max(*count);
-        let x0 = (tile % tiles_x) as u32 * TILE_PX;
-        let y0 = (tile / tiles_x) as u32 * TILE_PX;
-        let w = TILE_PX.min(width - x0) as usize;
-        for (i, r) in resolved.iter().enumerate() {
-            let p = (y0 as usize + i / w) * width as usize + x0 as usize + i % w;
-            pixels[p] = [0, 1, 2].map(|c| (r.colour[c] + r.background * bg[c]) as f32);
-        }
-    }
+    grid.scatter(&blocks, |pixel, r| {
+        pixels[pixel] = [0, 1, 2].map(|c| (r.colour[c] + r.background * bg[c]) as f32);
+    });
     stats.frames = 1;
     stats.footprints = kernel3d.kernels;
     stats.method = MethodStats::Kernel3d(kernel3d);
@@ -255,11 +246,14 @@ fn kernels_over(
 
 /// Per tile, the kernels whose screen bound (the hull of their end ellipses' boxes) reaches it,
 /// in kernel order; and each kernel's pixel bounds (empty when off-screen).
-fn bin(scene: &Scene, kernels: &[Kernel], culled: &mut Culled) -> (Vec<Vec<u32>>, Vec<[u32; 4]>) {
+fn bin(
+    scene: &Scene,
+    grid: &TileGrid,
+    kernels: &[Kernel],
+    culled: &mut Culled,
+) -> (TileLists, Vec<[u32; 4]>) {
     let camera = &scene.camera;
-    let tiles_x = camera.width.div_ceil(TILE_PX);
-    let tiles_y = camera.height.div_ceil(TILE_PX);
-    let per_kernel: Vec<Option<([u32; 4], Vec<u32>)>> = kernels
+    let per_kernel: Vec<Option<([u32; 4], Vec<usize>)>> = kernels
         .par_iter()
         .map(|k| {
             let (bounds, hull) = k.screen_bound(camera)?;
@@ -269,21 +263,19 @@ fn bin(scene: &Scene, kernels: &[Kernel], culled: &mut Culled) -> (Vec<Vec<u32>>
                 for tx in x0 / TILE_PX..=(x1 - 1) / TILE_PX {
                     let rect = [tx, ty, tx + 1, ty + 1].map(|v| f64::from(v * TILE_PX));
                     if hull_overlaps(&hull, rect) {
-                        tiles.push(ty * tiles_x + tx);
+                        tiles.push(grid.index(tx, ty));
                     }
                 }
             }
             Some((bounds, tiles))
         })
         .collect();
-    let mut lists = vec![Vec::new(); (tiles_x * tiles_y) as usize];
     let mut all_bounds = Vec::with_capacity(kernels.len());
+    let mut order = Vec::with_capacity(kernels.len());
     for (index, entry) in per_kernel.iter().enumerate() {
         match entry {
-            Some((bounds, tiles)) => {
-                for &tile in tiles {
-                    lists[tile as usize].push(index as u32);
-                }
+            Some((bounds, _)) => {
+                order.push(index as u32);
                 all_bounds.push(*bounds);
             }
             None => {
@@ -292,6 +284,11 @@ fn bin(scene: &Scene, kernels: &[Kernel], culled: &mut Culled) -> (Vec<Vec<u32>>
             }
         }
     }
+    let lists = TileLists::new(grid, &order, |index, visit| {
+        if let Some((_, tiles)) = &per_kernel[index as usize] {
+            tiles.iter().for_each(|&tile| visit(tile));
+        }
+    });
     (lists, all_bounds)
 }
 
@@ -302,19 +299,17 @@ struct TileWork<'a> {
     list: &'a [u32],
 }
 
-/// The fragments of the tile at [x0, y0] resolved per pixel, the number of fragments in the tile,
-/// and the most on one pixel.
+/// The fragments of the tile over pixels [x0, x1) × [y0, y1) resolved per pixel, the number of
+/// fragments in the tile, and the most on one pixel.
 fn resolve_tile(
     scene: &Scene,
     work: &TileWork,
-    [x0, y0]: [u32; 2],
+    [x0, y0, x1, y1]: [u32; 4],
     exposure: [f64; 2],
     windows: &[[f64; 2]],
     visible_depth: Option<&[Vec<f32>]>,
 ) -> (Vec<Resolved>, usize, usize) {
     let camera = &scene.camera;
-    let x1 = (x0 + TILE_PX).min(camera.width);
-    let y1 = (y0 + TILE_PX).min(camera.height);
     let w = (x1 - x0) as usize;
     let centre = DVec2::new(f64::from(camera.width), f64::from(camera.height)) * 0.5;
     let ray = |x: u32, y: u32| {

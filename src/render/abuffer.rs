@@ -1,5 +1,8 @@
-//! Per-pixel temporal visibility of kernel fragments: the exact A-buffer (Heinzle et al. 2010,
-//! §4.4) and the paper's GPU approximation (§5).
+//! Per-pixel temporal visibility of fragments: the exact A-buffer (Heinzle et al. 2010, §4.4)
+//! and the paper's GPU approximation (§5). A fragment is what one primitive leaves on one pixel
+//! ray: an interval of time, a coverage over it, a depth, a colour. `kernel3d`'s kernels make
+//! fragments of Gaussian coverage; a renderer of moving triangles adds a [`Coverage`] for
+//! samples a triangle covers wholly over an interval, and its fragments resolve by the same code.
 //!
 //! Time is measured as shutter mass (the exposure's share, 0 to 1), so that every interval's
 //! length is its weight in the picture.
@@ -24,7 +27,69 @@
 //! the pixel scales the blend, as the exact mode's does, so that the study measures what the
 //! temporal visibility approximation costs rather than hard-edged silhouettes.
 
-use super::kernel::Fragment;
+use super::kernel3d::integral::Primitive;
+
+/// What a primitive leaves on one pixel ray: the part of the exposure it covers the ray and how
+/// much.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Fragment {
+    /// The covered interval on the shutter-mass axis.
+    pub mass: [f64; 2],
+    /// How much of the pixel it covers over that interval.
+    pub coverage: Coverage,
+    /// Depth along the ray at the interval's ends.
+    pub depth: [f64; 2],
+    /// Linear RGB.
+    pub colour: [f32; 3],
+    /// Depth distance within which another fragment counts as the same surface.
+    pub tolerance: f64,
+    /// The primitive's index: a total order for ties.
+    pub id: u32,
+}
+
+/// A fragment's coverage of its pixel over time.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Coverage {
+    /// A 3D kernel integrated along the ray (Heinzle §4.2).
+    Kernel {
+        /// The kernel's own interval on the shutter-mass axis (maps mass to kernel time s).
+        kernel_mass: [f64; 2],
+        /// Antiderivative of the kernel along the ray, in kernel time.
+        primitive: Primitive,
+        /// Coverage density at the splat centre × shutter mass per unit of kernel time.
+        scale: f64,
+    },
+}
+
+impl Fragment {
+    /// Coverage × shutter mass from a fixed start to `m` (within the fragment's interval), up to
+    /// a constant: differences are the integral of the coverage over that part of its time.
+    pub fn cumulative(&self, m: f64) -> f64 {
+        match self.coverage {
+            Coverage::Kernel {
+                kernel_mass: [k0, k1],
+                primitive,
+                scale,
+            } => scale * primitive.at(-1.0 + 2.0 * (m - k0) / (k1 - k0)),
+        }
+    }
+
+    /// Coverage × mass over the part of the fragment within `window`, and that part's interval.
+    pub fn within(&self, window: [f64; 2]) -> Option<(f64, [f64; 2])> {
+        let (m0, m1) = (self.mass[0].max(window[0]), self.mass[1].min(window[1]));
+        (m1 > m0).then(|| (self.cumulative(m1) - self.cumulative(m0), [m0, m1]))
+    }
+
+    /// Depth along the ray at shutter mass `m`.
+    pub fn depth_at(&self, m: f64) -> f64 {
+        let [m0, m1] = self.mass;
+        if m1 > m0 {
+            self.depth[0] + (self.depth[1] - self.depth[0]) * ((m - m0) / (m1 - m0))
+        } else {
+            self.depth[0]
+        }
+    }
+}
 
 /// Most pieces a pixel's window is cut into. A pixel crossed by more fragment ends than this
 /// (thousands, where many small splats sweep past) has ends closer than 1/`MAX_PIECES` of the
@@ -38,7 +103,7 @@ const OPAQUE_REMAINDER: f64 = 1e-4;
 
 /// A resolved pixel: premultiplied colour and the share of the window showing the background.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub(super) struct Resolved {
+pub(crate) struct Resolved {
     pub colour: [f64; 3],
     pub background: f64,
 }
@@ -49,7 +114,7 @@ pub(super) struct Resolved {
 /// such pieces is composited as one span, each fragment's coverage over it integrated in one
 /// closed-form difference. Only pieces where two or more surfaces overlap are resolved one by
 /// one. (Within one surface the run's coverage is taken at its mean, as a piece's is.)
-pub(super) fn resolve_exact(fragments: &mut [Fragment], window: [f64; 2]) -> Resolved {
+pub(crate) fn resolve_exact(fragments: &mut [Fragment], window: [f64; 2]) -> Resolved {
     let mut out = Resolved::default();
     if one_surface(fragments) {
         // No fragment can ever hide another: the whole window is one run.
@@ -76,11 +141,7 @@ pub(super) fn resolve_exact(fragments: &mut [Fragment], window: [f64; 2]) -> Res
         merge_cuts(&mut cuts, (window[1] - window[0]) / MAX_PIECES as f64);
     }
     // Fragments by start, so that the active set is swept in order.
-    fragments.sort_unstable_by(|a, b| {
-        a.mass[0]
-            .total_cmp(&b.mass[0])
-            .then(a.kernel.cmp(&b.kernel))
-    });
+    fragments.sort_unstable_by(|a, b| a.mass[0].total_cmp(&b.mass[0]).then(a.id.cmp(&b.id)));
     let fragments: &[Fragment] = fragments;
     let mut cache = Cumulative::new(fragments);
     let mut run = Run::new(fragments.len());
@@ -294,13 +355,13 @@ impl Run {
 /// result does not depend on the order fragments arrived in).
 fn nearer(a: (f64, usize), b: (f64, usize), fragments: &[Fragment]) -> std::cmp::Ordering {
     a.0.total_cmp(&b.0)
-        .then(fragments[a.1].kernel.cmp(&fragments[b.1].kernel))
+        .then(fragments[a.1].id.cmp(&fragments[b.1].id))
 }
 
 /// The GPU approximation over the sub-frame `window`: `visible_depth` is the visible surface's
 /// depth at the sub-frame's start and end (+∞ where nothing covers the pixel then). Fragments
 /// reaching beyond the window (those of still objects) count with their part inside it.
-pub(super) fn resolve_approximate(
+pub(crate) fn resolve_approximate(
     fragments: &[Fragment],
     window: [f64; 2],
     visible_depth: [f32; 2],
