@@ -1,4 +1,4 @@
-//! The linear float image every renderer writes (files are written by [`crate::output`]).
+//! The linear float image every renderer writes (files are written by [`crate::io::image`]).
 
 /// A linear-light RGB image, row-major, pixel (0,0) top-left.
 #[derive(Clone, Debug, PartialEq)]

@@ -1,14 +1,15 @@
-//! streak renders moving point-based geometry (surfels: oriented Gaussian disks) two ways from
-//! one pipeline: physically based motion blur, and stylized motion hints (the object sharp at a
+//! streak renders moving geometry (surfels: oriented Gaussian disks) two ways from one
+//! pipeline: physically based motion blur, and stylized motion hints (the object sharp at a
 //! flash over a trail drawn in a [`style`]).
 //!
-//! The pipeline, one module per stage: a [`scene`] file is validated into surfels
-//! ([`geometry`], [`pointcloud`], [`volume`], [`mesh`]) with keyframed [`motion`], a [`camera`]
-//! and a [`shutter`]; a [`plan`] decides what the scene needs; the shared [`project`]ion stage
-//! turns surfels into screen-space footprints that the shared [`raster`]izer composites; the
-//! [`render`](mod@render)ers differ only in the footprints they make. [`metrics`] and [`study`] measure
-//! error against run time, [`plot`] draws it, [`gallery`] puts renders side by side on a page,
-//! [`output`] writes images.
+//! Build a [`Scene`] in code from a [`Camera`], objects made by a [`surfels`] source and a
+//! keyframed [`Motion`], pick a [`Method`], and [`render()`] it. This is
+//! `examples/moving_knot.rs`, which writes a blurred and a hinted picture of a moving knot:
+//!
+#![doc = concat!("```no_run\n", include_str!("../examples/moving_knot.rs"), "```")]
+//!
+//! A scene file says the same in TOML ([`Scene::load`], [`Scene::parse`]; the format is in the
+//! README):
 //!
 //! ```
 //! use streak::{render, Method, Scene};
@@ -34,6 +35,14 @@
 //! assert_eq!(image.pixels.len(), 64 * 48);
 //! # Ok::<(), streak::Error>(())
 //! ```
+//!
+//! The modules, in the order data flows through them (docs/architecture.md has the whole map):
+//! the [`scene`] model and the [`surfels`] sources that fill it, read from files by [`io`]; the
+//! [`plan`] of what a scene needs; the [`render`](mod@render)ers, which share a crate-private
+//! projection stage and tiled rasterizer and write a [`Framebuffer`]; [`math`] for the small
+//! linear algebra they share. With the default `cli` feature come the tools: `metrics` and
+//! `study` measure error against run time, `plot` draws it, and `gallery` puts renders side by
+//! side on a page. Without it (`default-features = false`) the crate is a pure-Rust core.
 
 // Guards are written `if !(x > lo)` on purpose, so that a NaN fails them and is rejected.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

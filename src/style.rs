@@ -8,7 +8,7 @@
 //! flash-and-trail photograph).
 
 use crate::error::{Error, Result};
-use crate::raster::{Profile, Texture};
+pub use crate::raster::{Profile, Texture};
 use crate::scene::{finite, rgb};
 use serde::Deserialize;
 use std::path::PathBuf;

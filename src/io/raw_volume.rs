@@ -94,7 +94,7 @@ impl Volume {
     ///
     /// Every problem is an error naming the file: a byte count other than the product of the
     /// dimensions and the voxel size (saying the expected and the found count), a zero dimension
-    /// or more than [`MAX_VOXELS`] voxels, corrupt gzip data, and, for float32, a NaN or infinite
+    /// or more than [`crate::surfels::volume::MAX_VOXELS`] voxels, corrupt gzip data, and, for float32, a NaN or infinite
     /// voxel (the first one, by its (x, y, z) index).
     pub fn read(path: &Path, dimensions: [usize; 3], voxel: VoxelType) -> Result<Volume> {
         let expected = expected_bytes(path, dimensions, voxel)?;

@@ -180,10 +180,10 @@ pub enum Shape {
         neighbours: Option<usize>,
     },
     /// The iso-surface of a raw scalar volume (optionally gzipped), one surfel per voxel cell it
-    /// crosses (Guan & Mueller 2004, §3.1); see [`crate::volume`].
+    /// crosses (Guan & Mueller 2004, §3.1); see [`crate::surfels::volume`].
     Volume(VolumeShape),
     /// A triangle mesh (OBJ or PLY, optionally gzipped) sampled into a given number of surfels,
-    /// area-weighted; see [`crate::mesh`].
+    /// area-weighted; see [`crate::surfels::mesh`].
     Mesh(MeshShape),
 }
 

@@ -160,7 +160,7 @@ impl Neighbours {
 /// centroid. Deterministic (same input → same output, whatever the thread count). Duplicate
 /// points, collinear neighbourhoods (any unit normal perpendicular to the line) and fewer than `k`
 /// points are handled; `k` below 3 is raised to 3, the fewest points that span a plane.
-/// Positions must be finite, as [`read_ply`] guarantees.
+/// Positions must be finite, as [`crate::io::ply::read_ply`] guarantees.
 pub fn estimate_normals(positions: &[DVec3], k: usize) -> Vec<DVec3> {
     let neighbours = Neighbours::find(positions, k.max(3));
     let mut normals: Vec<DVec3> = (0..positions.len())

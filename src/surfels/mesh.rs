@@ -4,7 +4,7 @@
 //! A surfel's Gaussian is a stand-in for the piece of surface it covers: where the pieces tile the
 //! surface and each Gaussian has its piece's area, centroid and second moments, plus a smoothing
 //! shared by all, the Gaussians add up to ≈ 1 as the pieces add up to the surface (the volume's
-//! surface-nets pieces work the same way, see [`crate::volume`]). So sampling a mesh into N
+//! surface-nets pieces work the same way, see [`super::volume`]). So sampling a mesh into N
 //! surfels makes N pieces, in three steps, none of them random:
 //!
 //! 1. Systematic sampling allots the pieces: with A the total area, piece i stands at cumulative
@@ -27,7 +27,7 @@
 //! coverage more than 2 px inside the silhouette): points stratified within each triangle (a
 //! Hammersley set per triangle) with isotropic Gaussians of σ = 1.2·√(A/N), twice the grid
 //! shapes' width, still left dips to 0.60–0.87; giving them local areas from the point-cloud
-//! estimator ([`pointcloud::estimate_radii_and_areas`]) and σ = √(A/N) left 0.66–0.88.
+//! estimator ([`super::cloud::estimate_radii_and_areas`]) and σ = √(A/N) left 0.66–0.88.
 //! Irregular points ripple whatever their areas unless σ grows far past their spacing; pieces
 //! do not.
 
