@@ -1,16 +1,11 @@
-//! The plan: what a scene needs before anything is rendered, and what was left out.
-//!
-//! Still objects take the static path (one projection, no motion ellipses, and the reference
-//! projects them once for all its frames); each moving object's shutter interval is cut at its
-//! keyframes and then into as few linear sub-segments as keep every probed point's screen path
-//! within the pixel tolerance of its chord (Guan & Mueller §6 ask for bent trails under rotation)
-//! and every sub-segment shorter than [`SEGMENT_LENGTH_PER_TOLERANCE`] × tolerance; a scene with
-//! no light runs no shading. `explain` turns the plan and the render's counts into text.
-//!
-//! A path that crosses the near plane never holds the tolerance (its screen path is unbounded), so
-//! its keyframe interval is cut into [`MAX_SEGMENTS_PER_INTERVAL`] pieces: the motion renderers
-//! drop a piece with an end behind the near plane, and this narrows what they drop from the whole
-//! interval to the piece around the crossing.
+//! The plan: what a scene needs before anything is rendered for one method, and what was left
+//! out. Still objects take the static path (projected once, no motion ellipses); a moving
+//! object's shutter interval is cut at its keyframes and then into as few linear sub-segments as
+//! keep every probed point's screen path within the method's tolerance of its chord and every
+//! sub-segment shorter than [`SEGMENT_LENGTH_PER_TOLERANCE`] tolerances; a scene with no light
+//! runs no shading. A path crossing the near plane is cut into [`MAX_SEGMENTS_PER_INTERVAL`]
+//! pieces, so that the renderers drop only the piece around the crossing. Derivation:
+//! docs/math.md, "Sub-segment planning".
 
 use crate::error::Result;
 use crate::project::Culled;

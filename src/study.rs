@@ -1,5 +1,5 @@
 //! Error against run time: every method across its quality knob, timed, and measured against a
-//! converged reference of the same scene (DESIGN.md, "Error against run time").
+//! converged reference of the same scene (docs/architecture.md, "Error against run time").
 //!
 //! The reference is the accumulation buffer at `reference_samples` frames (1024 by default),
 //! cached as linear EXR keyed by the scene text, image size and sample count. Each render is timed

@@ -52,7 +52,7 @@ fn blur_matches_the_closed_form_when_segments_are_short() {
 
 #[test]
 fn one_segment_is_the_summed_covariance_gaussian() {
-    // Guan & Mueller §3.3 / DESIGN.md: Σ + m mᵀ/12 for a box shutter, centred mid-path, same weight.
+    // Guan & Mueller §3.3 (docs/math.md, "Motion ellipse by summing covariances"): Σ + m mᵀ/12 for a box shutter, centred mid-path, same weight.
     let (scene, _) = translating_scene();
     let scale = px_per_unit(&scene.camera);
     let surfel = &scene.objects[0].surfels()[0];

@@ -1,4 +1,4 @@
-//! Stiff and extreme cases (DESIGN.md): on each one every splat renderer draws a finite picture
+//! Stiff and extreme cases (docs/conventions.md, "Stiff and extreme cases"): on each one every splat renderer draws a finite picture
 //! with bounded work, and the picture is the right one. Expectations that differ between methods
 //! are small functions of the method, so that a new renderer joins every case by one line in
 //! [`METHODS`]. NaN and infinite numbers in input files are `tests/cli.rs`'s.

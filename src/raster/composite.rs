@@ -1,19 +1,12 @@
-//! Per-pixel compositing of depth-sorted footprints, in time bins.
+//! Per-pixel compositing of depth-sorted footprints, in bins of shutter time.
 //!
-//! Footprints arrive in depth order. The ternary depth test groups them into surfaces (a footprint
-//! within the depth tolerance of the group's first one belongs to it, Zwicker et al.'s ε-z-buffer);
-//! a group's colour is the normalized Σwc/Σw. How much of the pixel a group covers, and so what
-//! shows behind it, is counted per bin of shutter time: each footprint deposits its weight in the
-//! bins during which it covers the pixel, a group's opacity in bin b is min(1, coverage_b / mass_b)
-//! and it hides what lies behind it only in that bin. Uncovered time shows the background.
-//!
-//! With one bin (an instant, or the accumulation buffer's frames) this is plain front-to-back
-//! compositing with coverage α = min(1, Σw). With motion ellipses one bin is not enough: the
-//! ellipses of a surface sliding past a pixel cover it at different times and often at different
-//! depths (the surface's relief passes by), so they fall into several groups, and compositing
-//! those with "over" treats time-disjoint coverage as stacked transparent layers, letting the
-//! background leak through — the more so the finer the sub-segments (measured on the bunny:
-//! RMSE rose from 0.033 at τ = 8 px to 0.073 at τ = 0.25 px with one bin).
+//! The ternary depth test groups footprints into surfaces (a footprint within the larger of its
+//! own and the open group's depth tolerance of the group's depth belongs to it); a group's colour
+//! is the normalized Σwc/Σw, and the share of the pixel it covers is counted per time bin: it
+//! hides what lies behind it only in the bins in which it covers the pixel, so that time-disjoint
+//! coverage of a sliding surface adds up instead of stacking as transparent layers. With one bin
+//! (an instant) this is plain front-to-back compositing with α = min(1, Σw). Why bins, with the
+//! measurements: docs/math.md, "Time bins for coverage".
 
 use super::Footprint;
 use crate::scene::shutter::Shutter;

@@ -1,17 +1,12 @@
-//! The shared rasterizer: screen-space Gaussian footprints → tiles → depth order → pixels.
+//! The shared rasterizer: screen-space Gaussian footprints → depth order → tiles → pixels.
 //!
 //! Every splat renderer ends here. A footprint is an elliptical Gaussian in pixels whose integral
-//! is the (time-weighted) screen area its surfel covers. Footprints are sorted once by depth, binned
-//! into 16×16 tiles in that order (so each tile's list is depth-sorted), and tiles are rendered in
-//! parallel; a tile owns its pixels, so there are no locks, and the work inside a tile is
-//! sequential, so the image bits do not depend on the thread count.
-//!
-//! Per pixel, footprints are grouped into surfaces by a ternary depth test (a footprint within the
-//! depth tolerance of the nearest one of the open group belongs to the same surface, Zwicker et al.'s
-//! ε-z-buffer). A closed group contributes its normalized colour Σwc/Σw with coverage α = min(1, Σw)
-//! and is composited front to back; what is left of the transmittance shows the background. With
-//! motion ellipses, Σw is the fraction of the shutter time the surface covers the pixel, so the
-//! background is blended by uncovered time, as Guan & Mueller §3.3 and Heinzle §5.4 ask.
+//! is the (time-weighted) screen area its surfel covers. Footprints are sorted once by depth and
+//! binned into the [`tiles`] in that order; tiles render in parallel, each owning its pixels and
+//! working sequentially inside, so the image bits do not depend on the thread count. Per pixel,
+//! [`composite`] groups footprints into surfaces and composites them front to back into a
+//! premultiplied [`Layer`]. Conventions: docs/conventions.md, "Premultiplied layers" and "Depth
+//! tests".
 
 mod composite;
 mod profile;
@@ -28,7 +23,7 @@ use profile::Sampler;
 use rayon::prelude::*;
 pub(crate) use tiles::{TileGrid, TileLists};
 
-/// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², DESIGN.md).
+/// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², docs/math.md "Projected splat covariance").
 /// 0.3 px² keeps every footprint at least ~0.55 px wide, so sampling at pixel centres sums even the
 /// narrowest footprint to within 2 % of its weight: the samples of a Gaussian ripple by
 /// ±2·exp(−2π²·0.3) = ±0.54 % per axis (Poisson summation), and [`TRUNCATION_GAIN`] restores the

@@ -1,31 +1,16 @@
 //! Per-pixel temporal visibility of fragments: the exact A-buffer (Heinzle et al. 2010, §4.4)
 //! and the paper's GPU approximation (§5). A fragment is what one primitive leaves on one pixel
-//! ray: an interval of time, a coverage over it, a depth, a colour. `kernel3d`'s kernels make
-//! fragments of Gaussian coverage; a renderer of moving triangles adds a [`Coverage`] for
-//! samples a triangle covers wholly over an interval, and its fragments resolve by the same code.
+//! ray: an interval of time (as shutter mass, so that lengths are weights), a coverage over it,
+//! a depth, a colour. `kernel3d`'s kernels make fragments of Gaussian coverage; a renderer of
+//! moving triangles adds a [`Coverage`] for samples a triangle covers over an interval, and its
+//! fragments resolve by the same code.
 //!
-//! Time is measured as shutter mass (the exposure's share, 0 to 1), so that every interval's
-//! length is its weight in the picture.
-//!
-//! **Exact.** The fragments' ends cut the exposure into pieces during which the same fragments
-//! cover the pixel. Within a piece each fragment has a depth (its depth interval interpolated),
-//! and fragments are grouped into surfaces by the ternary depth test, nearest first. A surface
-//! covers the piece by α = min(1, Σ coverage / piece), its colour is the coverage-weighted mean
-//! of its fragments' colours, and it hides that share of whatever lies behind it during the
-//! piece; what no surface covers shows the background. Each fragment's coverage over a piece is
-//! the closed-form integral over that sub-interval, so occluded parts of a fragment are removed
-//! exactly where a nearer surface covers, and uncovered time shows the background, weighted by
-//! the shutter. The only approximation is that within one piece a surface's coverage is taken at
-//! its mean.
-//!
-//! **Approximate** (§5.1–5.4): a fragment is kept when its nearest depth is in front of the
-//! visible surface at either end of the sub-frame (two depth buffers); kept fragments are
-//! blended with their whole integrals, normalized, and the background shows only outside the
-//! earliest-to-latest covered time [t_min, t_max] — so a pixel covered briefly at both ends of
-//! the sub-frame shows no background in between (§6, Fig. 9). Spatial coverage below one (a
-//! silhouette's anti-aliasing) is kept: the surfaces' mean coverage while any fragment covers
-//! the pixel scales the blend, as the exact mode's does, so that the study measures what the
-//! temporal visibility approximation costs rather than hard-edged silhouettes.
+//! Exact: the fragments' ends cut the window into pieces; within each, fragments are grouped
+//! into surfaces by the ternary depth test, nearest first, and each covers by its closed-form
+//! coverage integral, hiding that share of what lies behind. Approximate: fragments in front of
+//! the visible surface at either sub-frame end are blended with their whole integrals, and the
+//! background shows only outside the earliest-to-latest covered time. Details and the
+//! departures from the paper: docs/math.md, "A-buffer visibility".
 
 use super::kernel3d::integral::Primitive;
 

@@ -1,35 +1,11 @@
-//! Motion blur in one pass of motion ellipses (Guan & Mueller §3.3, the "more efficient method":
-//! the 2D covariance of the projected splat plus the covariance of its projected motion).
-//!
-//! For each sub-segment [t0, t1] of a moving object's plan, a surfel seen at both ends makes one
-//! elliptical Gaussian: centred on the chord at the shutter-weighted mean time, with covariance
-//! Σ_splat + σ_f² I + m mᵀ · Var(t)/(t1 − t0)², where m is the screen chord (for a box shutter
-//! Var(t)/(t1−t0)² = 1/12, the variance of a uniform segment; DESIGN.md), and weight equal to the
-//! splat's screen area times the shutter mass of the sub-segment. The masses of all sub-segments
-//! sum to one, so a blurred splat carries exactly the energy of the static one.
-//!
-//! A surfel that turns away from the camera during a sub-segment keeps the share of the weight
-//! for the time it faces it (its facing cosine taken as linear in between); one that faces away
-//! at both ends is culled.
-//!
-//! Chained sub-segments: consecutive ellipses are one chord length apart; with the uniform
-//! variance alone (σ = 0.29 chord) a small splat's chain shows beads — the striping Heinzle
-//! §4.5 attributes to this method. Where a surfel's own spread along the motion is under half a
-//! chord, its motion variance is raised until it reaches half a chord, so that neighbours overlap
-//! at one standard deviation. A single segment keeps the paper's formula unchanged.
-//!
-//! Visibility is the paper's: ellipses are depth-sorted and grouped by the ternary depth test, and
-//! groups are composited front to back. A motion ellipse's depth tolerance grows by the full depth
-//! change of its sub-segment so that consecutive sub-segments of one surfel stay one surface;
-//! split, their time coverages would be composited as if they were transparent layers, and the
-//! background would leak through (measured on the torus knot: RMSE 0.047 → 0.042 at τ = 1 px).
-//!
-//! Known leaks (`tests/stiff.rs` bounds them): an ellipse deposits the weight of a Gaussian, not of
-//! the flat-topped streak, in the bins around each pixel's passing time, so a finely sampled
-//! opaque surface fills its bins unevenly and shows 7–11 % of the background inside when it
-//! slides a few pixels; and under motion along the view ray, ellipses passing a pixel at different
-//! depths split into depth groups that share bins, which leaks up to 27 % (a square flying
-//! through the near plane) and makes the groups depend on footprint order.
+//! Motion blur in one pass of motion ellipses (Guan & Mueller §3.3): for each sub-segment of a
+//! moving object's plan, a surfel seen at both ends makes one elliptical Gaussian with the
+//! covariance of the projected splat plus that of its projected motion, weighted by the shutter
+//! mass of the sub-segment, so that a blurred splat carries the energy of the static one. The
+//! ellipse itself is [`crate::project::motion_ellipse`]; coverage is composited in
+//! [`TIME_BINS`] bins of shutter time. Derivation, the widening of chained ellipses and the
+//! known leaks (which `tests/stiff.rs` bounds): docs/math.md, "Motion ellipse by summing
+//! covariances" and "Time bins for coverage".
 
 use super::{draw, Render, Stats};
 use crate::plan::{ObjectMotion, Plan};

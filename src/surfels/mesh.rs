@@ -1,35 +1,11 @@
-//! Triangle meshes as input: OBJ and PLY files read into triangles, and their surface cut into
-//! pieces of about equal area, one surfel each.
-//!
-//! A surfel's Gaussian is a stand-in for the piece of surface it covers: where the pieces tile the
-//! surface and each Gaussian has its piece's area, centroid and second moments, plus a smoothing
-//! shared by all, the Gaussians add up to ≈ 1 as the pieces add up to the surface (the volume's
-//! surface-nets pieces work the same way, see [`super::volume`]). So sampling a mesh into N
-//! surfels makes N pieces, in three steps, none of them random:
-//!
-//! 1. Systematic sampling allots the pieces: with A the total area, piece i stands at cumulative
-//!    area (i + ½)·A/N along the triangles in Morton order of their centroids, so a triangle of
-//!    area a gets ⌊N·a/A⌋ or ⌈N·a/A⌉ pieces, never a random clump or gap of them, and where
-//!    triangles are smaller than A/N the ones that get a piece are spread evenly.
-//! 2. A triangle with k pieces is cut into k triangles of equal area: from the corner opposite
-//!    its longest edge to the point dividing that edge ⌊k/2⌋ : ⌈k/2⌉, and each part again.
-//!    Each surfel of a piece faces its triangle's normal, from the winding (counter-clockwise
-//!    seen from outside, as OBJ and PLY files store it).
-//! 3. A triangle that got no piece joins the nearest piece that faces the same way, whose normal
-//!    becomes the area-weighted mean.
-//!
-//! Every step is a pure function of the triangles, so the surfels are the same whatever the
-//! thread count. Their areas sum to A; each is A/N on average (a/k in a triangle of area a cut
-//! into k).
-//!
-//! Random points with A/N each leave holes. Measured on the coverage test's view (a unit
-//! icosphere of 320 to 81,920 triangles, 10,000 to 100,000 samples, 160 × 160 pixels, the least
-//! coverage more than 2 px inside the silhouette): points stratified within each triangle (a
-//! Hammersley set per triangle) with isotropic Gaussians of σ = 1.2·√(A/N), twice the grid
-//! shapes' width, still left dips to 0.60–0.87; giving them local areas from the point-cloud
-//! estimator ([`super::cloud::estimate_radii_and_areas`]) and σ = √(A/N) left 0.66–0.88.
-//! Irregular points ripple whatever their areas unless σ grows far past their spacing; pieces
-//! do not.
+//! Triangle meshes sampled into surfels: the surface is cut into pieces of about equal area, one
+//! surfel each, whose Gaussian has the piece's area, centroid and second moments plus a
+//! smoothing shared by all, so that the Gaussians add up to ≈ 1 as the pieces add up to the
+//! surface. Pieces are allotted by systematic sampling along the faces in Morton order, each
+//! face cut into equal-area parts along its longest edge, and faces too small for a piece join
+//! their nearest piece facing the same way: none of it random, the same for any thread count.
+//! Why not random points, and the measured coverage: docs/math.md, "Mesh sampling with moments",
+//! and docs/history.md, "Meshes".
 
 use std::num::NonZeroUsize;
 

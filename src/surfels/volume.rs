@@ -1,21 +1,9 @@
-//! Scalar volumes as input: a raw voxel file, and the iso-surface at a chosen value turned into
-//! surfels. Guan & Mueller (2004, §3.1–3.2) render one iso-surface of a volume as oriented
-//! Gaussian disks instead of splatting every voxel; this is where those disks come from.
-//!
-//! Extraction is "surface nets": one surfel per cell (the box between 2 × 2 × 2 neighbouring
-//! samples) whose corners straddle the iso-value, near the mean of the points where the cell's
-//! edges cross it. Marching cubes would make triangles, but a surfel needs only a point, a normal
-//! and an area; one point per cell lies within a fraction of a voxel of the surface.
-//!
-//! Area. A plane with unit normal n meets a cell of sides s iff its offset along n falls within
-//! the cell's extent along n, width = Σ|n_i|·s_i; cells fill space at one per s_x·s_y·s_z, so per
-//! unit area the plane meets width/(s_x·s_y·s_z) cells, and each crossed cell stands for
-//! (s_x·s_y·s_z)/width of surface *on average*. That total is right, but locally it is not: a
-//! gently tilted surface crosses exactly one cell per column between the terraces where it passes
-//! a grid plane and two at them, and a sphere built that way rendered with rings of coverage down
-//! to 0.64. So each surfel takes the area of its own piece of surface (the polygon of the
-//! crossings in its tangent plane), which is right cell by cell and sums to the same total, and a
-//! Gaussian shaped after that piece (see `SMOOTHING`).
+//! Scalar volumes turned into surfels: the iso-surface at a chosen value, one surfel per cell
+//! whose corners straddle it (surface nets; Guan & Mueller 2004, §3.1–3.2 render an iso-surface
+//! as oriented Gaussian disks). Each surfel takes the area, centroid and second moments of its
+//! own piece of surface (the polygon of the cell's edge crossings in its tangent plane), which is
+//! right cell by cell, not only in total: docs/math.md, "Volume iso-surface surfels", and
+//! docs/history.md, "Volumes".
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 

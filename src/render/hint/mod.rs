@@ -1,27 +1,11 @@
 //! Motion hints (Guan & Mueller 2004): the object drawn sharp, as by a flash, over a trail that
-//! tells where it came from.
-//!
-//! Two layers come from the shared pipeline (§3.1, §4):
-//! - the **object layer**: every surfel drawn by static EWA splatting at the flash time;
-//! - the **trail layer**: a motion ellipse per surfel and sub-segment of the trail's time window,
-//!   the projected splat's covariance plus that of its projected motion (§3.3), made by the same
-//!   code as [`super::Method::Blur`]'s.
-//!
-//! The style ([`crate::style`]) decides the rest: the trail's window (length and offset before the
-//! flash) and its stroboscopic copies (§3.3: "a number of motion ellipses of identical
-//! orientation, but shorter along the motion direction and spaced apart"), its colour (the
-//! object's own, or a ramp driven by screen speed or by time along the trail, §3.3 and Fig. 7),
-//! footprint texture (Fig. 7), N·L and N·V modulation and additive or alpha blending (§4), and
-//! how the layers meet: the trail under the object, or one merged depth order in which closer
-//! object parts hide farther trails (§4).
-//!
-//! Each copy of the trail is drawn as a whole exposure of its own time slot: its motion ellipses
-//! carry the slot's full weight, so a short copy is as solid as a long trail, and with a trail
-//! that spans the whole exposure the trail layer is exactly [`super::Method::Blur`]'s image.
-//!
-//! Beyond the paper (its §6 lists both as future work): trails bend along rotational paths,
-//! because they follow the plan's sub-segments of the arc, and points hidden in the object image
-//! at flash time emit no trail (a visibility test against the object layer's visible depth).
+//! tells where it came from. Two layers from the shared pipeline (§3.1, §4): the object layer,
+//! static EWA splatting at the flash; and the trail layer, motion ellipses made by the same code
+//! as `blur`'s over the trail's time window, so that a trail spanning the whole exposure is
+//! exactly `blur`'s image. The [`crate::style`] decides the rest: window, stroboscopic copies,
+//! colour ramps, textures, N·L and N·V modulation, blending, how the layers meet, and speed
+//! lines. Beyond the paper (its §6 future work): trails bend along rotational paths, and points
+//! hidden at the flash emit none. Details: docs/math.md, "Hint trails".
 
 mod speed_lines;
 

@@ -1,46 +1,12 @@
-//! Speed lines: tapered, fading, anti-aliased ribbons trailing a moving object.
+//! Speed lines: tapered, fading, anti-aliased ribbons trailing a moving object, thick and opaque
+//! at the object and thinning and fading towards their oldest end (after Schmid et al. 2010).
 //!
-//! Each [`SpeedLine`] is a polyline from its oldest point to its newest (at the
-//! object). Following Schmid et al. 2010, it is drawn thick and opaque at the
-//! object, thinning and fading towards the oldest end.
-//!
-//! Pipeline, per line: validate → clip the centre line → build ONE ribbon
-//! outline → coverage from tiny-skia → opacity by arc length → colour and
-//! "over" in `f32`.
-//!
-//! * Geometry. Width and opacity go linearly with arc length `s` along the
-//!   original (unclipped) centre line. Every segment is offset by the local
-//!   half width along its own normal. The outer side of each bend gets a
-//!   round join (no miter spikes, even when the line turns back on itself).
-//!   The inner side goes through the vertex, like Skia's stroker. Under the
-//!   non-zero rule the overlap there is filled once, not twice. The newest end
-//!   gets a round cap, so the trail meets the object smoothly. The oldest end
-//!   is butt: it is faded there, and with `taper = 0` it is a point anyway. A
-//!   tapered ribbon is offset along segment normals rather than along the true
-//!   envelope of its varying-width disc. The error is of order (dh/ds)², which
-//!   is negligible for speed-line tapers.
-//! * Coverage. The whole outline of a line is filled once, with the non-zero
-//!   rule, into an 8-bit tiny-skia [`Mask`] as large as the line's bounding
-//!   box. So a line never doubles its alpha at its joints or where it crosses
-//!   itself.
-//! * Opacity. Each covered pixel takes the arc length of its nearest point on
-//!   the centre line. The simpler design is a tiny-skia `LinearGradient` from
-//!   the oldest to the newest point. But it follows the chord, not the line. On
-//!   a strongly curved line it fades across the line instead of along it. On a
-//!   nearly closed loop the chord is nearly zero. It also rounds opacity to
-//!   8 bits.
-//! * Colour. tiny-skia blends 8-bit premultiplied bytes. Linear colours
-//!   stored in 8 bits band in the darks. Colours encoded as sRGB would make
-//!   tiny-skia blend overlapping lines in sRGB, not in linear light. So tiny-skia
-//!   gives coverage only. Here, `α = coverage × opacity` and `colour × α` are
-//!   composited "over" the earlier lines in `f32`. The output is linear and
-//!   premultiplied. Later lines in the slice go over earlier ones. The only
-//!   8-bit quantity left is anti-aliased coverage.
-//! * Robustness. A line is skipped when a coordinate or colour is not finite,
-//!   or it has fewer than two distinct points, or its length overflows `f64`.
-//!   Centre lines are clipped in `f64` to the image plus a margin wider than
-//!   the ribbon. So points at ±1e9 px draw their visible part, and tiny-skia
-//!   only sees small coordinates. Bad geometry draws nothing and never panics.
+//! Per line: validate, clip the centre line (in f64, so that far-off points draw their visible
+//! part), build one ribbon outline with round joins and a round cap at the newest end, take its
+//! 8-bit coverage from tiny-skia (filled once with the non-zero rule, so a line never doubles its
+//! alpha where it overlaps itself), give each pixel the opacity of its nearest centre-line point
+//! by arc length, and composite colour "over" the earlier lines in linear f32. Bad geometry
+//! draws nothing and never panics. Derivation and choices: docs/math.md, "Hint trails".
 
 use crate::raster::Layer;
 use glam::DVec2;

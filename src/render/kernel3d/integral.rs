@@ -1,5 +1,5 @@
 //! The closed-form line integral of a 3D kernel along a pixel ray (Heinzle et al. 2010, §4.2,
-//! eqs. 18–20), with numerics that hold in the tails (DESIGN.md, "Stable erf differences").
+//! eqs. 18–20), with numerics that hold in the tails (docs/math.md, "Stable erf differences").
 //!
 //! Along a pixel ray, the point where the ray meets the splat plane at kernel time s ∈ [−1, 1]
 //! has splat-local coordinates p + s·q (in standard deviations), so the kernel's value there is

@@ -1,23 +1,16 @@
 //! Motion blur with 3D spatio-temporal kernels and exact temporal visibility (Heinzle et al.
-//! 2010, §3–5).
+//! 2010, §3–5). The exposure is cut into sub-frames (§5.5), each weighted by its share of the
+//! shutter; per surfel and sub-frame a kernel spans the splat's two axes and its motion
+//! ([`kernel`], §4.1), is bounded on screen (§4.3), integrated along each pixel's ray in closed
+//! form ([`integral`], §4.2), and its fragments are resolved per pixel by the A-buffer
+//! ([`crate::render::abuffer`], §4.4, or the GPU approximation of §5). Kernels of all sub-frames
+//! are binned together and each tile is resolved over the whole exposure, one tile per worker at
+//! a time, so fragments never outlive their tile.
 //!
-//! The exposure is cut into sub-frames (§5.5: the plan's sub-segments, or a given number of equal
-//! ones), each weighted by its share of the shutter. Per surfel and sub-frame, a kernel spans the
-//! splat's two axes and its motion over the sub-frame ([`kernel`], §4.1), with the screen
-//! pre-filter stood in for in object space. Per pixel, the kernel is integrated along the pixel's
-//! ray in closed form ([`integral`], §4.2), over the part of the sub-frame in which the ray is
-//! inside the kernel's bounding cylinder (§4.3) and in front of the near plane: a fragment with a
-//! time interval, a depth interval and a closed-form weight. Fragments are resolved per pixel by
-//! an A-buffer ([`abuffer`], §4.4), exactly or as the paper's GPU approximation (§5).
-//!
-//! Memory is bounded by working one sub-frame and one 16×16 tile at a time: fragments never
-//! outlive their tile. Fragments of different sub-frames cover disjoint times, so resolving the
-//! sub-frames one after the other and adding them up is exact.
-//!
-//! One choice differs from the paper: a kernel's weight over its sub-frame is uniform in time (the
-//! shutter's own weight, exact for a box shutter), not a truncated Gaussian. With uniform weights
-//! consecutive sub-frames add up to the shutter exactly, so a single sub-frame of linear motion is
-//! already the exact time integral, and zero motion is the static splat.
+//! One choice differs from the paper: a kernel's weight over its sub-frame is uniform in time
+//! (the shutter's own weight), not a truncated Gaussian, so consecutive sub-frames add up to the
+//! shutter exactly and zero motion is the static splat. Details: docs/math.md, "3D kernel along a
+//! ray".
 
 pub(super) mod integral;
 mod kernel;
