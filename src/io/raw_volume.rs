@@ -101,16 +101,7 @@ impl Volume {
         // Read no more than one byte past the expected size: a hostile file cannot fill memory,
         // and the rest is only counted for the message.
         let bytes = match read_bounded(path, expected, true)? {
-            Bounded::Within(bytes) if bytes.len() as u64 == expected => bytes,
-            Bounded::Within(bytes) => {
-                return Err(wrong_size(
-                    path,
-                    dimensions,
-                    voxel,
-                    expected,
-                    bytes.len() as u64,
-                ))
-            }
+            Bounded::Within(bytes) => bytes,
             Bounded::Over(size) => return Err(wrong_size(path, dimensions, voxel, expected, size)),
         };
         Volume::decode(bytes, dimensions, voxel, path)

@@ -316,6 +316,19 @@ pub struct Layer {
 }
 
 impl Layer {
+    /// A clear `width` × `height` layer: adds nothing, hides nothing.
+    #[must_use]
+    pub fn clear(width: u32, height: u32) -> Layer {
+        let size = width as usize * height as usize;
+        Layer {
+            width,
+            height,
+            colour: vec![[0.0; 3]; size],
+            transmittance: vec![1.0; size],
+            front_depth: vec![f32::INFINITY; size],
+        }
+    }
+
     /// The layer over a plain `background`.
     #[must_use]
     pub fn over_colour(&self, background: [f32; 3]) -> Framebuffer {
@@ -421,14 +434,7 @@ pub fn rasterize<const B: usize>(
         })
         .collect();
 
-    let size = width as usize * height as usize;
-    let mut layer = Layer {
-        width,
-        height,
-        colour: vec![[0.0; 3]; size],
-        transmittance: vec![1.0; size],
-        front_depth: vec![f32::INFINITY; size],
-    };
+    let mut layer = Layer::clear(width, height);
     grid.scatter(&blocks, |pixel, out| {
         layer.colour[pixel] = out.colour;
         layer.transmittance[pixel] = out.transmittance;

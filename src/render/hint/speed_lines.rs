@@ -74,14 +74,7 @@ const AA_REACH_PX: f64 = 1.0;
 #[must_use]
 pub fn draw(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Layer {
     let strokes = strokes(lines, look, width, height);
-    let size = width as usize * height as usize;
-    let mut layer = Layer {
-        width,
-        height,
-        colour: vec![[0.0; 3]; size],
-        transmittance: vec![1.0; size],
-        front_depth: vec![f32::INFINITY; size],
-    };
+    let mut layer = Layer::clear(width, height);
     for ((colour, transmittance), px) in layer
         .colour
         .iter_mut()
