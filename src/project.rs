@@ -163,7 +163,7 @@ pub enum Cull {
 
 impl Culled {
     /// Keep a footprint (or kernel) or count why there is none.
-    pub fn keep<T>(&mut self, result: Result<T, Cull>, kept: &mut Vec<T>) {
+    pub(crate) fn keep<T>(&mut self, result: Result<T, Cull>, kept: &mut Vec<T>) {
         match result {
             Ok(f) => kept.push(f),
             Err(Cull::BackFacing) => self.back_facing += 1,
@@ -174,7 +174,7 @@ impl Culled {
     }
 
     /// Add another tally to this one.
-    pub fn add(&mut self, other: &Culled) {
+    pub(crate) fn add(&mut self, other: &Culled) {
         self.back_facing += other.back_facing;
         self.off_screen += other.off_screen;
         self.behind_near += other.behind_near;

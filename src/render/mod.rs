@@ -17,6 +17,7 @@ mod kernel3d;
 mod reference;
 mod still;
 
+pub use crate::project::Culled;
 pub use crate::raster::{CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility};
@@ -25,7 +26,6 @@ pub use reference::ReferenceStats;
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{Plan, TOLERANCE_RANGE_PX};
-use crate::project::Culled;
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, Target, TimeBins};
 use crate::scene::Scene;
 use crate::style::Style;
