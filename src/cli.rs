@@ -149,6 +149,10 @@ fn sample_count() -> clap::builder::RangedU64ValueParser<usize> {
     clap::builder::RangedU64ValueParser::new().range(1..=MAX_SAMPLES as u64)
 }
 
+/// Most worker threads per core `--threads` may ask for: a few per core can help when a core
+/// waits on memory; thousands only cost time (a 0.01 s render took 30 s with 4,000).
+const THREADS_PER_CORE: usize = 8;
+
 /// Parse the command line and do the job.
 pub fn run() -> Result<()> {
     let cli = Cli::parse();
@@ -159,8 +163,14 @@ pub fn run() -> Result<()> {
     };
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
-        if n == 0 {
-            return Err(Error::Usage("--threads must be at least 1".into()));
+        let cores = std::thread::available_parallelism().map_or(1, usize::from);
+        let most = THREADS_PER_CORE * cores;
+        if !(1..=most).contains(&n) {
+            return Err(Error::Usage(format!(
+                "--threads {n}: use 1 to {most} ({THREADS_PER_CORE} per core of this machine's \
+                 {cores}); more threads than cores only add overhead, and the image is the same \
+                 whatever the count"
+            )));
         }
         pool = pool.num_threads(n);
     }
@@ -172,6 +182,21 @@ pub fn run() -> Result<()> {
         Command::Study(args) => run_study(args),
         Command::Gallery(args) => run_gallery(args),
     })
+}
+
+/// Write `text` to standard output. A reader that has gone away (`streak … | head -1`) is not an
+/// error: the rest of the text is not wanted.
+fn print_quietly(text: &str) {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    if let Err(e) = stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush())
+    {
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            eprintln!("streak: cannot write to standard output: {e}");
+        }
+    }
 }
 
 /// Load a scene and apply the size override.
@@ -242,10 +267,10 @@ fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
         },
         MethodName::Blur => Method::Blur { tolerance_px },
         MethodName::Hint => Method::Hint {
-            style: match args.style.as_ref().or(scene.style.as_ref()) {
-                Some(path) => Arc::new(Style::load(path)?),
-                None => Arc::new(Style::default()),
-            },
+            style: Arc::new(match &args.style {
+                Some(path) => Style::load(path)?,
+                None => scene.own_style()?.unwrap_or_default(),
+            }),
             tolerance_px,
         },
         MethodName::Kernel3d => Method::Kernel3d {
@@ -284,6 +309,16 @@ fn as_option(error: Error) -> Error {
 }
 
 fn run_render(args: RenderArgs) -> Result<()> {
+    // File names are checked before the render, not after it.
+    output::ImageKind::of(&args.output)?;
+    if let Some(exr) = &args.exr {
+        if output::ImageKind::of(exr).ok() != Some(output::ImageKind::Exr) {
+            return Err(Error::Usage(format!(
+                "--exr {}: the linear float image is OpenEXR; give a file name ending in .exr",
+                exr.display()
+            )));
+        }
+    }
     let loading = Instant::now();
     let scene = load(&args.scene, &args.image)?;
     let load_seconds = loading.elapsed().as_secs_f64();
@@ -310,25 +345,22 @@ fn run_render(args: RenderArgs) -> Result<()> {
         output::write_exr(&out.image, exr)?;
     }
     if args.explain {
-        println!(
-            "scene: {} surfels read and sampled in {load_seconds:.3} s (files, point clouds, meshes, volume iso-surfaces)",
-            scene.surfel_count()
-        );
-        print!("{}", plan.explain(Some(&out.stats.culled)));
-        print!("{}", out.stats.method.explain());
-        println!(
-            "rendered {} footprints in {} frame(s) in {seconds:.3} s; tile lists: {} entries, longest {}",
+        let surfel_instants = scene.surfel_count() * out.stats.frames;
+        print_quietly(&format!(
+            "scene: {} surfels read and sampled in {load_seconds:.3} s (files, point clouds, meshes, volume iso-surfaces)\n\
+             {}{}\
+             rendered {} footprints in {} frame(s) in {seconds:.3} s; tile lists: {} entries, longest {}\n\
+             throughput: {:.3e} surfels × frames per second, {:.3e} footprints per second (plan + render)\n",
+            scene.surfel_count(),
+            plan.explain(Some(&out.stats.culled)),
+            out.stats.method.explain(),
             out.stats.footprints,
             out.stats.frames,
             out.stats.tile_entries,
-            out.stats.max_per_tile
-        );
-        let surfel_instants = scene.surfel_count() * out.stats.frames;
-        println!(
-            "throughput: {:.3e} surfels × frames per second, {:.3e} footprints per second (plan + render)",
+            out.stats.max_per_tile,
             surfel_instants as f64 / seconds,
             out.stats.footprints as f64 / seconds
-        );
+        ));
     }
     eprintln!(
         "wrote {} ({} {}×{}, {seconds:.3} s)",
@@ -342,20 +374,20 @@ fn run_render(args: RenderArgs) -> Result<()> {
 
 fn run_study(args: StudyArgs) -> Result<()> {
     let scene = load(&args.scene, &args.image)?;
-    let style_paths: Vec<&PathBuf> = if args.style.is_empty() {
-        scene.style.iter().collect()
+    let styles = if args.style.is_empty() {
+        scene.own_style()?.into_iter().map(Arc::new).collect()
     } else {
-        args.style.iter().collect()
+        args.style
+            .iter()
+            .map(|p| Style::load(p).map(Arc::new))
+            .collect::<Result<_>>()?
     };
     let options = StudyOptions {
         reference_samples: args.reference_samples,
         max_samples: args.max_samples,
         repeats: args.repeats,
         out_dir: args.output.clone(),
-        styles: style_paths
-            .into_iter()
-            .map(|p| Style::load(p).map(Arc::new))
-            .collect::<Result<_>>()?,
+        styles,
     };
     let progress = bar(args.reference_samples as u64, "converged reference");
     let points = study::run(&scene, &options, Some(&progress))?;
@@ -382,7 +414,7 @@ fn run_study(args: StudyArgs) -> Result<()> {
     }
     std::fs::write(args.output.join("study.md"), &report)
         .map_err(|e| Error::io(&args.output, e))?;
-    print!("{report}");
+    print_quietly(&report);
     eprintln!("wrote {}", args.output.join("study.csv").display());
     Ok(())
 }

@@ -108,11 +108,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
             .unwrap_or_default()
             .to_string_lossy()
             .into_owned();
-        let own = scene
-            .style
-            .as_ref()
-            .map(|p| Style::load(p).map(Arc::new))
-            .transpose()?;
+        let own = scene.own_style()?.map(Arc::new);
         let mut styles: Vec<Arc<Style>> = own.iter().cloned().collect();
         styles.extend(
             options

@@ -171,6 +171,50 @@ fn half_turns_lights_colours_and_budgets_are_rejected() {
         &[],
         &["object[0].keyframe[1].rotate", "add keyframes"],
     );
+    // Whole turns are orientations slerp cannot tell from none (720° is the identity), and a
+    // step past a half turn about one axis would be drawn the short way round.
+    for (name, from, to, needle) in [
+        ("two-turns", 0, 720, "less than a whole turn"),
+        ("one-turn", 0, 360, "less than a whole turn"),
+        (
+            "long-way",
+            170,
+            -170,
+            "turns 340° from the previous keyframe",
+        ),
+        (
+            "no-rotation-first",
+            0,
+            200,
+            "turns 200° from the previous keyframe",
+        ),
+    ] {
+        let turn = SCENE
+            .replace(
+                "t = 0.0",
+                &format!("t = 0.0\nrotate = {{ axis = [0, 1, 0], degrees = {from} }}"),
+            )
+            .replace(
+                "translate = [0.5, 0, 0]",
+                &format!("rotate = {{ axis = [0, 1, 0], degrees = {to} }}"),
+            );
+        rejected(name, &turn, &[], &["object[0].keyframe[", needle]);
+    }
+    let opposite_axes = SCENE
+        .replace(
+            "t = 0.0",
+            "t = 0.0\nrotate = { axis = [0, 1, 0], degrees = 100 }",
+        )
+        .replace(
+            "translate = [0.5, 0, 0]",
+            "rotate = { axis = [0, -1, 0], degrees = 100 }",
+        );
+    rejected(
+        "opposite-axes",
+        &opposite_axes,
+        &[],
+        &["object[0].keyframe[1].rotate", "turns 200°"],
+    );
     let dark = format!("{SCENE}\n[lighting]\nlight = [{{ direction = [0, 0, 0] }}]\n");
     rejected("light", &dark, &[], &["lighting.light[0].direction"]);
     rejected(
@@ -350,6 +394,14 @@ fn command_line_mistakes_are_explained() {
         (vec!["render", "scene.toml", "-o", "out.jpg"], ".png"),
         (vec!["render", "nope.toml"], "nope.toml"),
         (vec!["render", "scene.toml", "--threads", "0"], "--threads"),
+        (
+            vec!["render", "scene.toml", "--threads", "4000"],
+            "--threads 4000: use 1 to",
+        ),
+        (
+            vec!["render", "scene.toml", "--exr", "x.tiff"],
+            "--exr x.tiff: the linear float image is OpenEXR",
+        ),
         (vec!["render", "scene.toml", "-m", "sharp"], "sharp"),
         // Options a method does not read are errors, not ignored.
         (
@@ -509,4 +561,41 @@ fn kernel_options_belong_to_kernel3d() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("kernel3d: "));
+}
+
+#[test]
+fn a_reader_that_goes_away_ends_the_output_quietly() {
+    // `streak render … --explain | head -1`: standard output closes before the explanation is
+    // written.
+    let dir = workdir("pipe");
+    std::fs::write(dir.join("scene.toml"), SCENE).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_streak"))
+        .args(["render", "scene.toml", "--explain"])
+        .current_dir(&dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
+fn a_missing_scene_style_names_the_scene_and_its_field() {
+    let dir = workdir("missing-style");
+    std::fs::write(
+        dir.join("scene.toml"),
+        format!("style = \"nope.toml\"\n{SCENE}"),
+    )
+    .unwrap();
+    let out = streak(&["render", "scene.toml", "-m", "hint"], &dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("scene.toml: style: cannot read") && stderr.contains("nope.toml"),
+        "{stderr}"
+    );
 }

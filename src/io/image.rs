@@ -4,21 +4,39 @@ use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use std::path::Path;
 
-/// Write `image` by the file's extension: `.png` (8-bit sRGB) or `.exr` (linear 32-bit float).
-pub fn write_image(image: &Framebuffer, path: &Path) -> Result<()> {
-    match extension(path).as_deref() {
-        Some("png") => write_png(image, path),
-        Some("exr") => write_exr(image, path),
-        _ => Err(Error::Usage(format!(
-            "{}: unknown image type; use a .png (sRGB) or .exr (linear float) file name",
-            path.display()
-        ))),
+/// The kinds of image file written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageKind {
+    /// 8-bit sRGB PNG, for looking.
+    Png,
+    /// Linear 32-bit float OpenEXR, for analysis.
+    Exr,
+}
+
+impl ImageKind {
+    /// The kind a file name asks for by its extension (`.png`, `.exr`, any case), or an error
+    /// saying which names are understood.
+    pub fn of(path: &Path) -> Result<ImageKind> {
+        let extension = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match extension.as_deref() {
+            Some("png") => Ok(ImageKind::Png),
+            Some("exr") => Ok(ImageKind::Exr),
+            _ => Err(Error::Usage(format!(
+                "{}: unknown image type; use a .png (sRGB) or .exr (linear float) file name",
+                path.display()
+            ))),
+        }
     }
 }
 
-fn extension(path: &Path) -> Option<String> {
-    path.extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+/// Write `image` as its file name says: `.png` (8-bit sRGB) or `.exr` (linear 32-bit float).
+pub fn write_image(image: &Framebuffer, path: &Path) -> Result<()> {
+    match ImageKind::of(path)? {
+        ImageKind::Png => write_png(image, path),
+        ImageKind::Exr => write_exr(image, path),
+    }
 }
 
 fn create_parent(path: &Path) -> Result<()> {

@@ -16,6 +16,7 @@ use crate::error::{Error, Result};
 use crate::scene::{
     Camera, Keyframe, Light, Lighting, Motion, Object, Pose, Scene, Shutter, ShutterShape,
 };
+use crate::style::Style;
 use crate::surfels::cloud::{check_neighbours, DEFAULT_NEIGHBOURS};
 use crate::surfels::volume::{voxel_count, IsoSurface, Volume, MAX_VOXELS};
 use crate::surfels::{
@@ -350,6 +351,23 @@ impl Scene {
     pub fn parse(text: &str, path: &Path) -> Result<Scene> {
         validate(parse_toml(text, path)?, path)
     }
+
+    /// The style the scene names (`style = "…"`), read; `None` when it names none. A file that
+    /// cannot be read is an error naming the scene file and its `style` field; a mistake inside
+    /// the style names the style file and its field.
+    pub fn own_style(&self) -> Result<Option<Style>> {
+        let Some(path) = &self.style else {
+            return Ok(None);
+        };
+        Style::load(path).map(Some).map_err(|e| match e {
+            Error::Io { file, source } => Error::Input {
+                file: self.source.clone().unwrap_or_else(|| file.clone()),
+                field: "style".into(),
+                message: format!("cannot read {}: {source}", file.display()),
+            },
+            other => other,
+        })
+    }
 }
 
 /// Read TOML `text` from `path` into `T`, naming the line of any syntax error or unknown key.
@@ -422,20 +440,35 @@ fn validate_object(o: &ObjectSpec, index: usize, path: &Path, base: &Path) -> Re
     let mut surfels = object_surfels(o, path, base, &field)?;
     colouring.apply(&mut surfels);
     let mut keyframes = Vec::with_capacity(o.keyframe.len());
+    // The previous keyframe's rotation as written: its unit axis (none for no rotation) and angle.
+    let mut previous: Option<(Option<DVec3>, f64)> = None;
     for (k, key) in o.keyframe.iter().enumerate() {
-        let rotation = match &key.rotate {
-            None => DQuat::IDENTITY,
+        let rotate_field = format!("{field}.keyframe[{k}].rotate");
+        let (axis, degrees) = match &key.rotate {
+            None => (None, 0.0),
             Some(r) => {
-                let at = |name: &str| format!("{field}.keyframe[{k}].rotate.{name}");
                 let axis = crate::scene::finite3("axis", DVec3::from_array(r.axis))
-                    .map_err(|e| e.in_file(path, &format!("{field}.keyframe[{k}].rotate")))?
+                    .map_err(|e| e.in_file(path, &rotate_field))?
                     .try_normalize()
-                    .ok_or_else(|| Error::input(path, at("axis"), "must not be the zero vector"))?;
+                    .ok_or_else(|| {
+                        Error::input(
+                            path,
+                            format!("{rotate_field}.axis"),
+                            "must not be the zero vector",
+                        )
+                    })?;
                 let degrees = crate::scene::finite("degrees", r.degrees)
-                    .map_err(|e| e.in_file(path, &format!("{field}.keyframe[{k}].rotate")))?;
-                DQuat::from_axis_angle(axis, degrees.to_radians())
+                    .map_err(|e| e.in_file(path, &rotate_field))?;
+                (Some(axis), degrees)
             }
         };
+        if let Some(turn) = turn_past_half(previous, (axis, degrees)) {
+            return Err(Error::input(path, &rotate_field, turn));
+        }
+        previous = Some((axis, degrees));
+        let rotation = axis.map_or(DQuat::IDENTITY, |axis| {
+            DQuat::from_axis_angle(axis, degrees.to_radians())
+        });
         keyframes.push(Keyframe {
             t: key.t,
             pose: Pose {
@@ -447,6 +480,41 @@ fn validate_object(o: &ObjectSpec, index: usize, path: &Path, base: &Path) -> Re
     }
     let motion = Motion::new(keyframes).map_err(|e| e.in_file(path, &field))?;
     Ok(Object::new(name, surfels, motion))
+}
+
+/// Why a keyframe's rotation, written as `axis` and `degrees`, cannot follow the `previous`
+/// one's, if it cannot. Rotations between keyframes are interpolated by slerp, the shorter way
+/// between two orientations, so a step must turn less than 180°; and an orientation is at most a
+/// turn, so a rotation of 360° or more says nothing an angle below 360° does not (720° would
+/// be drawn as no rotation at all). The quaternions cannot tell either case (720° is the
+/// identity), so the angles as written are checked: about one axis, the step between the angles;
+/// about two different axes, the turn between the orientations (which [`Motion::new`] checks).
+fn turn_past_half(
+    previous: Option<(Option<DVec3>, f64)>,
+    (axis, degrees): (Option<DVec3>, f64),
+) -> Option<String> {
+    if degrees.abs() >= 360.0 {
+        return Some(format!(
+            "degrees = {degrees}: a keyframe gives an orientation, less than a whole turn \
+             (|degrees| < 360); to spin, give keyframes less than 180° apart"
+        ));
+    }
+    let (previous_axis, previous_degrees) = previous?;
+    // Angles about one axis (or from no rotation) compare directly; the opposite axis turns the
+    // other way.
+    let step = match (previous_axis, axis) {
+        (None, _) | (_, None) => Some(degrees - previous_degrees),
+        (Some(a), Some(b)) if a.dot(b) > 1.0 - 1e-12 => Some(degrees - previous_degrees),
+        (Some(a), Some(b)) if a.dot(b) < -1.0 + 1e-12 => Some(-degrees - previous_degrees),
+        _ => None,
+    }?;
+    (step.abs() >= 180.0).then(|| {
+        format!(
+            "turns {}° from the previous keyframe; rotation is interpolated by slerp, which takes \
+             the shorter way, so keyframes must be less than 180° apart: add keyframes in between",
+            step.abs()
+        )
+    })
 }
 
 /// The surfels of an object's shape, in their sources' own colours.

@@ -87,7 +87,7 @@ impl Default for TrailSpec {
             ramp_by: RampBy::Speed,
             speed_range: None,
             fade: 1.0,
-            texture: TextureSpec::Name(TextureName::Gaussian),
+            texture: TextureSpec::Builtin(Profile::Gaussian),
             modulate_light: false,
             modulate_view: false,
             emitters: Emitters::Visible,
@@ -102,19 +102,49 @@ enum TrailColourSpec {
     Ramp,
 }
 
+/// `trail.texture`: a built-in profile by name, or `{ image = "file.png" }`.
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(try_from = "toml::Value")]
 enum TextureSpec {
-    Name(TextureName),
-    Image { image: PathBuf },
+    Builtin(Profile),
+    Image(PathBuf),
 }
 
-#[derive(Deserialize, Clone, Copy)]
-#[serde(rename_all = "kebab-case")]
-enum TextureName {
-    Gaussian,
-    Disc,
-    Ring,
+/// The built-in trail profiles by name.
+const PROFILES: [(&str, Profile); 3] = [
+    ("gaussian", Profile::Gaussian),
+    ("disc", Profile::Disc),
+    ("ring", Profile::Ring),
+];
+
+impl TryFrom<toml::Value> for TextureSpec {
+    type Error = String;
+    fn try_from(value: toml::Value) -> std::result::Result<Self, String> {
+        let choices = "\"gaussian\", \"disc\", \"ring\" or { image = \"file.png\" }";
+        match &value {
+            toml::Value::String(name) => PROFILES
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|&(_, profile)| TextureSpec::Builtin(profile))
+                .ok_or_else(|| format!("trail.texture = \"{name}\": use {choices}")),
+            toml::Value::Table(table) => {
+                if let Some(key) = table.keys().find(|k| *k != "image") {
+                    return Err(format!(
+                        "trail.texture: unknown key `{key}`: a texture image is written {{ image = \"file.png\" }}"
+                    ));
+                }
+                match table.get("image") {
+                    Some(toml::Value::String(file)) => Ok(TextureSpec::Image(file.into())),
+                    _ => Err(
+                        "trail.texture: an image texture needs `image`, the image file's path, \
+                              as text: { image = \"file.png\" }"
+                            .to_string(),
+                    ),
+                }
+            }
+            _ => Err(format!("trail.texture = {value}: use {choices}")),
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -201,10 +231,8 @@ fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
         },
     };
     let (profile, texture) = match &t.texture {
-        TextureSpec::Name(TextureName::Gaussian) => (Profile::Gaussian, None),
-        TextureSpec::Name(TextureName::Disc) => (Profile::Disc, None),
-        TextureSpec::Name(TextureName::Ring) => (Profile::Ring, None),
-        TextureSpec::Image { image } => {
+        TextureSpec::Builtin(profile) => (*profile, None),
+        TextureSpec::Image(image) => {
             let base = path.parent().unwrap_or(Path::new("."));
             (
                 Profile::Texture,
@@ -342,6 +370,14 @@ mod tests {
             unknown.contains("lenght") && unknown.contains("line 2"),
             "{unknown}"
         );
+        let misspelt = error_of("[trail]\ntexture = \"gausian\"");
+        assert!(
+            misspelt.contains("trail.texture = \"gausian\": use \"gaussian\", \"disc\"")
+                && misspelt.contains("line 2"),
+            "{misspelt}"
+        );
+        let extra = error_of("[trail]\ntexture = { image = \"brush.png\", scale = 2 }");
+        assert!(extra.contains("unknown key `scale`"), "{extra}");
         let texture = error_of("[trail]\ntexture = { image = \"no-such.png\" }");
         assert!(
             texture.contains("trail.texture.image") && texture.contains("no-such.png"),
