@@ -314,17 +314,20 @@ pub(crate) fn motion_ellipse(
     // time; the span grows by as much (√3 × the added standard deviation), or that coverage would
     // pile into the sub-segment's first and last bins.
     let reach = (3.0 * (motion_variance - uniform_variance)).sqrt() * duration;
+    // In exposure time (0 at shutter open, 1 at close), as the rasterizer counts it.
+    let exposure = shutter.duration();
+    let exposure_time = |t: f64| (t - shutter.open) / exposure;
     let time = TimeExtent {
-        center: moments.mean,
+        center: exposure_time(moments.mean),
         gradient: if chord_sq > 0.0 {
-            chord * (duration / chord_sq)
+            chord * (duration / chord_sq / exposure)
         } else {
             DVec2::ZERO
         },
-        half_width: (3.0 * along).sqrt().min(1.0) * duration,
+        half_width: (3.0 * along).sqrt().min(1.0) * duration / exposure,
         span: [
-            (t0 - reach).max(shutter.open),
-            (t1 + reach).min(shutter.close),
+            exposure_time((t0 - reach).max(shutter.open)),
+            exposure_time((t1 + reach).min(shutter.close)),
         ],
     };
     Ok(ScreenSplat {

@@ -18,7 +18,8 @@ const OPAQUE_REMAINDER: f32 = 1e-4;
 /// The visible surface of a pixel is the first that leaves less than this share unoccluded.
 const VISIBLE_REMAINDER: f32 = 0.5;
 
-/// The shutter interval cut into `B` equal bins of time, with the shutter's mass in each.
+/// The exposure cut into `B` equal bins of time, with the shutter's mass in each. Times are
+/// exposure times ([`super::TimeExtent`]): 0 at shutter open, 1 at close.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TimeBins<const B: usize> {
     start: f32,
@@ -41,8 +42,8 @@ impl<const B: usize> TimeBins<B> {
     pub fn over(shutter: &Shutter) -> Self {
         let step = shutter.duration() / B as f64;
         TimeBins {
-            start: shutter.open as f32,
-            bins_per_time: (1.0 / step) as f32,
+            start: 0.0,
+            bins_per_time: B as f32,
             mass: std::array::from_fn(|b| {
                 let t0 = shutter.open + step * b as f64;
                 shutter.moments(t0, t0 + step).mass as f32

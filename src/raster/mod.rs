@@ -82,11 +82,13 @@ pub struct Footprint {
     pub additive: bool,
 }
 
-/// When a footprint covers a pixel. A motion ellipse stands for a splat sliding along a chord
-/// during its sub-segment: a pixel is covered around the time the splat's centre passes its
-/// projection on the chord (a linear function of the pixel, clamped to the sub-segment), for as
-/// long as the splat takes to pass. A footprint of an instant or of a still object covers the
-/// pixel for its whole span.
+/// When a footprint covers a pixel, in exposure time: 0 when the shutter opens, 1 when it
+/// closes, whatever the shutter's length (absolute frame times in f32 could not tell apart the
+/// moments of a shutter open for 10⁻⁷ of the frame). A motion ellipse stands for a splat sliding
+/// along a chord during its sub-segment: a pixel is covered around the time the splat's centre
+/// passes its projection on the chord (a linear function of the pixel, clamped to the
+/// sub-segment), for as long as the splat takes to pass. A footprint of an instant or of a still
+/// object covers the pixel for its whole span.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TimeExtent {
     /// Covering time at the footprint's centre.
@@ -100,7 +102,7 @@ pub struct TimeExtent {
 }
 
 impl TimeExtent {
-    /// Covers every pixel it touches for the whole frame.
+    /// Covers every pixel it touches for the whole exposure.
     pub const WHOLE_FRAME: TimeExtent = TimeExtent {
         center: 0.5,
         gradient: DVec2::ZERO,
