@@ -10,8 +10,8 @@ use glam::{DQuat, DVec3};
 use streak::plan::{ObjectMotion, MAX_SEGMENTS_PER_INTERVAL};
 use streak::render::{PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
 use streak::scene::Pose;
-use streak::surfels::Surfel;
 use streak::scene::{Shutter, ShutterShape};
+use streak::surfels::Surfel;
 use streak::{Framebuffer, Method, Plan, Render, Scene};
 
 /// Every splat renderer; each case runs all of them.
@@ -299,7 +299,11 @@ mod stiff {
         let camera = camera(64, 64);
         let path = linear(DVec3::new(-1.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0));
         let mut moving = scene(camera, vec![object(square(1.5, 0.05, 0.0), path)]);
-        for shape in [ShutterShape::Box, ShutterShape::Tent, ShutterShape::Gaussian] {
+        for shape in [
+            ShutterShape::Box,
+            ShutterShape::Tent,
+            ShutterShape::Gaussian,
+        ] {
             moving.shutter = Shutter::new(0.5, 0.5 + 1e-8, shape).unwrap();
             let instant = red(&sharp(&moving, 0.5).image);
             for &method in METHODS {

@@ -533,8 +533,9 @@ fn object_surfels(o: &ObjectSpec, path: &Path, base: &Path, field: &str) -> Resu
             no_spacing("a point cloud makes one surfel per point: remove this `spacing`")?;
             let neighbours = check_neighbours(neighbours.unwrap_or(DEFAULT_NEIGHBOURS))
                 .map_err(|e| e.in_file(path, &shape_field))?;
-            return from_point_cloud(&read_ply(&base.join(file))?, neighbours)
-                .map_err(|e| e.in_file(path, &shape_field));
+            let file = base.join(file);
+            return from_point_cloud(&read_ply(&file)?, neighbours)
+                .map_err(|e| e.in_file(&file, ""));
         }
         Shape::Volume(ref volume) => {
             no_spacing(

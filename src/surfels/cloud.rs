@@ -50,30 +50,90 @@ pub fn check_neighbours(neighbours: usize) -> Result<usize> {
     }
 }
 
-/// Surfels from a point cloud: one isotropic surfel per point, with the cloud's normals, radii
-/// and colours where it has them (else [`DEFAULT_GREY`]), and normals, covering radii and areas
-/// estimated from `neighbours` nearest neighbours where it does not. An error names
-/// `neighbours` when it is outside [`NEIGHBOUR_RANGE`].
+/// Surfels from a point cloud: one isotropic surfel per distinct position, with the cloud's
+/// normals, radii and colours where it has them (else [`DEFAULT_GREY`]), and normals, covering
+/// radii and areas estimated from `neighbours` nearest neighbours where it does not.
+///
+/// Points at exactly the same position are one point (the first of them): a stack of them would
+/// only draw one disc several times over, and would make the neighbour search quadratic. Errors
+/// name `neighbours` when it is outside [`NEIGHBOUR_RANGE`], and `points` when the cloud cannot
+/// give surfels: no points, one distinct position (nothing to measure an area by), or, with
+/// normals to estimate, all on one line (no plane to fit).
 pub fn from_point_cloud(cloud: &PointCloud, neighbours: usize) -> Result<Vec<Surfel>> {
     let k = check_neighbours(neighbours)?;
-    let normals = match &cloud.normals {
-        Some(n) => n.clone(),
-        None => estimate_normals(&cloud.positions, k),
+    let kept = distinct_positions(&cloud.positions);
+    let positions: Vec<DVec3> = kept.iter().map(|&i| cloud.positions[i]).collect();
+    let merged = cloud.positions.len() - positions.len();
+    let counted = || {
+        let n = cloud.positions.len();
+        let mut counted = format!("{n} point{}", if n == 1 { "" } else { "s" });
+        if merged > 0 {
+            counted += &format!(" ({} at one position with another, merged)", merged);
+        }
+        counted
     };
-    let (cover_radii, areas) = estimate_radii_and_areas(&cloud.positions, &normals, k);
-    Ok((0..cloud.positions.len())
-        .map(|i| {
-            let radius = cloud.radii.as_ref().map_or(cover_radii[i], |r| r[i]);
+    if positions.len() < 2 {
+        return Err(Error::invalid(
+            "points",
+            format!(
+                "{}: a surfel's area is measured by its neighbours, so a cloud needs at least two \
+                 distinct positions (three not on one line without normals)",
+                counted()
+            ),
+        ));
+    }
+    let normals = match &cloud.normals {
+        Some(n) => kept.iter().map(|&i| n[i]).collect(),
+        None if collinear(&positions) => {
+            return Err(Error::invalid(
+                "points",
+                format!(
+                    "{}, all on one line: normals are estimated from the plane of a point's \
+                     neighbours, and a line has none; give normals (nx ny nz) or points off \
+                     the line",
+                    counted()
+                ),
+            ))
+        }
+        None => estimate_normals(&positions, k),
+    };
+    let (cover_radii, areas) = estimate_radii_and_areas(&positions, &normals, k);
+    Ok(kept
+        .iter()
+        .enumerate()
+        .map(|(j, &i)| {
+            let radius = cloud.radii.as_ref().map_or(cover_radii[j], |r| r[i]);
             let colour = cloud.colors.as_ref().map_or(DEFAULT_GREY, |c| c[i]);
-            Surfel::isotropic(
-                cloud.positions[i],
-                normals[i],
-                areas[i],
-                Some(radius),
-                colour,
-            )
+            Surfel::isotropic(positions[j], normals[j], areas[j], Some(radius), colour)
         })
         .collect())
+}
+
+/// The index of the first point at each distinct position, in order (−0 and +0 are one).
+fn distinct_positions(positions: &[DVec3]) -> Vec<usize> {
+    let key = |p: DVec3| (p + DVec3::ZERO).to_array().map(f64::to_bits);
+    let mut seen = std::collections::HashSet::with_capacity(positions.len());
+    (0..positions.len())
+        .filter(|&i| seen.insert(key(positions[i])))
+        .collect()
+}
+
+/// Whether all `positions` lie on one line (or at one point), to 10⁻⁹ of their extent.
+fn collinear(positions: &[DVec3]) -> bool {
+    let origin = positions[0];
+    let Some(far) = positions.iter().copied().max_by(|a, b| {
+        a.distance_squared(origin)
+            .total_cmp(&b.distance_squared(origin))
+    }) else {
+        return true;
+    };
+    let Some(direction) = (far - origin).try_normalize() else {
+        return true;
+    };
+    let extent = far.distance(origin);
+    positions
+        .iter()
+        .all(|&p| (p - origin).reject_from_normalized(direction).length() <= 1e-9 * extent)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -848,5 +908,63 @@ mod tests {
             .build()
             .unwrap();
         assert_eq!(first, single_thread.install(estimate));
+    }
+
+    /// A cloud of `positions` and nothing else.
+    fn bare(positions: Vec<DVec3>) -> PointCloud {
+        PointCloud {
+            positions,
+            ..PointCloud::default()
+        }
+    }
+
+    #[test]
+    fn clouds_that_cannot_give_surfels_are_errors_naming_why() {
+        let error = |cloud: PointCloud| from_point_cloud(&cloud, 12).unwrap_err().to_string();
+        let message = error(bare(Vec::new()));
+        assert!(message.starts_with("points: 0 points: "), "{message}");
+        let message = error(bare(vec![DVec3::ONE]));
+        assert!(message.starts_with("points: 1 point: "), "{message}");
+        // A thousand points at one position are one point.
+        let message = error(bare(vec![DVec3::new(0.2, 0.1, 0.0); 1000]));
+        assert!(
+            message.contains("1000 points (999 at one position with another, merged)"),
+            "{message}"
+        );
+        // Two points, or a hundred on a line, fit no plane for the normals.
+        for line in [2, 100] {
+            let points = (0..line)
+                .map(|i| DVec3::X * (0.01 * f64::from(i)))
+                .collect();
+            let message = error(bare(points));
+            assert!(message.contains("all on one line"), "{message}");
+        }
+        // With their normals given, two points are enough: each stands for a disc half way to
+        // the other.
+        let mut two = bare(vec![DVec3::ZERO, DVec3::X * 0.1]);
+        two.normals = Some(vec![DVec3::Z; 2]);
+        let surfels = from_point_cloud(&two, 12).unwrap();
+        assert_eq!(surfels.len(), 2);
+        assert!(surfels.iter().all(|s| s.area > 0.0 && s.normal == DVec3::Z));
+    }
+
+    #[test]
+    fn repeated_points_are_merged_before_the_neighbour_search() {
+        // A 30 × 30 grid, every point given three times (and one of them as −0 where it is 0):
+        // the surfels are those of the grid given once.
+        let grid: Vec<DVec3> = (0..900)
+            .map(|i| DVec3::new(f64::from(i % 30) * 0.1, f64::from(i / 30) * 0.1, 0.0))
+            .collect();
+        let mut repeated = Vec::new();
+        for p in &grid {
+            repeated.extend([*p, *p, DVec3::new(p.x, p.y, -0.0)]);
+        }
+        let once = from_point_cloud(&bare(grid), 12).unwrap();
+        assert_eq!(from_point_cloud(&bare(repeated), 12).unwrap(), once);
+        // 10⁵ points at one position end at once with an error, not in a quadratic search.
+        let message = from_point_cloud(&bare(vec![DVec3::ONE; 100_000]), 12)
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("99999 at one position"), "{message}");
     }
 }
