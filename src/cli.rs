@@ -12,6 +12,7 @@ use streak::render::{Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES, M
 use streak::scene::camera::check_image_size;
 use streak::study::{self, StudyOptions};
 use streak::style::Style;
+use streak::surfels::Budget;
 use streak::{Error, Method, Plan, Result, Scene};
 
 /// Motion blur and motion hints for point-based geometry.
@@ -60,6 +61,20 @@ struct ImageArgs {
     /// Worker threads (default: all cores). The image is the same whatever the count.
     #[arg(long)]
     threads: Option<usize>,
+    /// Most surfels a scene may have, all objects together (each is counted before it is
+    /// made; default 8000000, about 2.5 GB at the peak of a render).
+    #[arg(long)]
+    max_surfels: Option<usize>,
+}
+
+impl ImageArgs {
+    /// The scene-wide surfel budget asked for.
+    fn budget(&self) -> Result<Budget> {
+        match self.max_surfels {
+            Some(n) => Budget::new(n).map_err(as_option),
+            None => Ok(Budget::default()),
+        }
+    }
 }
 
 #[derive(Args)]
@@ -201,7 +216,7 @@ fn print_quietly(text: &str) {
 
 /// Load a scene and apply the size override.
 fn load(path: &Path, image: &ImageArgs) -> Result<Scene> {
-    let mut scene = Scene::load(path)?;
+    let mut scene = Scene::load_within(path, image.budget()?)?;
     if let (Some(w), Some(h)) = (image.width, image.height) {
         scene.camera = scene.camera.resized(w, h).map_err(as_option)?;
     }
@@ -298,12 +313,13 @@ fn method_name(name: MethodName) -> &'static str {
 }
 
 /// A setting's error in the command line's words: the setting `width/height` is the options
-/// `--width/--height`, any other is `--` and its name.
+/// `--width/--height`, any other is `--` and its name in kebab case.
 fn as_option(error: Error) -> Error {
     match error {
-        Error::Invalid { field, message } => {
-            Error::Usage(format!("--{} {message}", field.replace('/', "/--")))
-        }
+        Error::Invalid { field, message } => Error::Usage(format!(
+            "--{} {message}",
+            field.replace('/', "/--").replace('_', "-")
+        )),
         other => other,
     }
 }
@@ -447,6 +463,7 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
         samples: args.samples,
         out_dir: args.output.clone(),
         size: args.image.width.zip(args.image.height),
+        budget: args.image.budget()?,
     };
     // Per scene: reference, static, blur, and a hint per style (the scene's own style may add one).
     let per_scene = 3 + options.styles.len() as u64;

@@ -16,6 +16,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::render::{render, Method, DEFAULT_TOLERANCE_PX};
 use crate::scene::Scene;
 use crate::style::Style;
+use crate::surfels::Budget;
 use indicatif::ProgressBar;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -35,6 +36,8 @@ pub struct GalleryOptions {
     pub out_dir: PathBuf,
     /// Image size overriding the scenes' own.
     pub size: Option<(u32, u32)>,
+    /// Surfels each scene may have.
+    pub budget: Budget,
 }
 
 /// One rendered image.
@@ -99,7 +102,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
     std::fs::create_dir_all(&options.out_dir).map_err(|e| Error::io(&options.out_dir, e))?;
     let mut rows = Vec::new();
     for path in &options.scenes {
-        let mut scene = Scene::load(path)?;
+        let mut scene = Scene::load_within(path, options.budget)?;
         if let Some((w, h)) = options.size {
             scene.camera = scene.camera.resized(w, h)?;
         }

@@ -227,7 +227,25 @@ fn half_turns_lights_colours_and_budgets_are_rejected() {
         "budget",
         &SCENE.replace("spacing = 0.1", "spacing = 1e-5"),
         &[],
-        &["object[0].spacing", "larger spacing"],
+        &[
+            "object[0].spacing",
+            "more than the scene's budget of 8000000 surfels: use a larger spacing",
+            "--max-surfels",
+        ],
+    );
+    // Twenty million mesh samples are refused before the mesh is read (it took 6.1 GB).
+    rejected(
+        "mesh-budget",
+        &SCENE.replace(
+            "shape = { type = \"sphere\", radius = 1.0 }\nspacing = 0.1",
+            "shape = { type = \"mesh\", path = \"no-such.obj\", samples = 20000000 }",
+        ),
+        &[],
+        &[
+            "object[0].shape.samples",
+            "20000000 surfels are more than",
+            "--max-surfels",
+        ],
     );
     rejected(
         "up",
@@ -596,6 +614,29 @@ fn a_missing_scene_style_names_the_scene_and_its_field() {
     assert!(!out.status.success());
     assert!(
         stderr.contains("scene.toml: style: cannot read") && stderr.contains("nope.toml"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn the_surfel_budget_is_the_whole_scene_s_and_can_be_raised() {
+    // Two spheres of 1,257 surfels each.
+    let dir = workdir("scene-budget");
+    let second = SCENE[SCENE.find("[[object]]").unwrap()..].replace("\"ball\"", "\"other\"");
+    std::fs::write(dir.join("scene.toml"), format!("{SCENE}\n{second}")).unwrap();
+    let run = |budget: &str| streak(&["render", "scene.toml", "--max-surfels", budget], &dir);
+    let out = run("2000");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("object[1].spacing")
+            && stderr.contains("more than the 743 surfels left of the scene's budget of 2000"),
+        "{stderr}"
+    );
+    assert!(run("3000").status.success());
+    let stderr = String::from_utf8_lossy(&run("0").stderr).into_owned();
+    assert!(
+        stderr.contains("--max-surfels 0: allow between 1 and"),
         "{stderr}"
     );
 }

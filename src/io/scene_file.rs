@@ -20,8 +20,7 @@ use crate::style::Style;
 use crate::surfels::cloud::{check_neighbours, DEFAULT_NEIGHBOURS};
 use crate::surfels::volume::{voxel_count, IsoSurface, Volume, MAX_VOXELS};
 use crate::surfels::{
-    from_mesh, from_point_cloud, from_volume, Colouring, Mesh, Primitive, Surfel,
-    MAX_SURFELS_PER_OBJECT,
+    from_mesh, from_point_cloud, from_volume, Budget, Colouring, Mesh, Primitive, Surfel,
 };
 
 #[derive(Deserialize)]
@@ -247,29 +246,36 @@ pub struct MeshShape {
 }
 
 impl MeshShape {
-    /// Check every field, read the file and sample its surface into surfels (at most
-    /// `max_surfels`). `file` names the scene in messages, `base` anchors the relative path,
-    /// `field` is where the shape sits in the scene (e.g. `object[2].shape`).
+    /// Check every field, read the file and sample its surface into surfels (within `budget`).
+    /// `file` names the scene in messages, `base` anchors the relative path, `field` is where the
+    /// shape sits in the scene (e.g. `object[2].shape`).
     pub fn surfels(
         &self,
         file: &Path,
         base: &Path,
         field: &str,
-        max_surfels: usize,
+        budget: Budget,
     ) -> Result<Vec<Surfel>> {
+        let samples_field = format!("{field}.samples");
         let count = usize::try_from(self.samples)
             .ok()
-            .filter(|n| (1..=max_surfels).contains(n))
+            .filter(|&n| n >= 1)
             .ok_or_else(|| {
                 Error::input(
                     file,
-                    format!("{field}.samples"),
-                    format!(
-                        "{}: the number of surfels must be between 1 and {max_surfels}",
-                        self.samples
-                    ),
+                    &samples_field,
+                    format!("{}: the number of surfels must be at least 1", self.samples),
                 )
             })?;
+        if !budget.fits(count) {
+            return Err(budget
+                .exceeded(
+                    &samples_field,
+                    &format!("{count} surfels are"),
+                    "sample fewer",
+                )
+                .in_file(file, ""));
+        }
         let path = base.join(&self.path);
         let mesh = Mesh::read(&path)?;
         from_mesh(&mesh, count, self.centre.unwrap_or(true)).map_err(|e| e.in_file(&path, ""))
@@ -295,15 +301,15 @@ pub struct VolumeShape {
 }
 
 impl VolumeShape {
-    /// Check every field, read the file and extract the iso-surface into surfels (at most
-    /// `max_surfels`). `file` names the scene in messages, `base` anchors the relative path,
-    /// `field` is where the shape sits in the scene (e.g. `object[2].shape`).
+    /// Check every field, read the file and extract the iso-surface into surfels (within
+    /// `budget`). `file` names the scene in messages, `base` anchors the relative path, `field` is
+    /// where the shape sits in the scene (e.g. `object[2].shape`).
     pub fn surfels(
         &self,
         file: &Path,
         base: &Path,
         field: &str,
-        max_surfels: usize,
+        budget: Budget,
     ) -> Result<Vec<Surfel>> {
         let voxel = VoxelType::from_name(&self.voxel).ok_or_else(|| {
             let names: Vec<String> = VoxelType::ALL
@@ -335,21 +341,28 @@ impl VolumeShape {
             // A negative stride is as wrong as 0, which the check below reports.
             stride: usize::try_from(self.stride.unwrap_or(1)).unwrap_or(0),
         };
-        from_volume(&volume, &surface, max_surfels).map_err(|e| e.in_file(file, field))
+        from_volume(&volume, &surface, budget).map_err(|e| e.in_file(file, field))
     }
 }
 
 impl Scene {
-    /// Read and validate a scene file. Relative paths inside it (point clouds, meshes, volumes,
-    /// the style) are resolved against the file's folder.
+    /// Read and validate a scene file, within the default surfel budget. Relative paths inside
+    /// it (point clouds, meshes, volumes, the style) are resolved against the file's folder.
     pub fn load(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Scene::parse(&text, path)
+        Scene::load_within(path, Budget::default())
     }
 
-    /// Validate scene text; `path` names the file in messages and anchors relative paths.
+    /// [`Scene::load`] with a surfel budget for the whole scene: every object's surfels are
+    /// counted against it before they are made.
+    pub fn load_within(path: &Path, budget: Budget) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        validate(parse_toml(&text, path)?, path, budget)
+    }
+
+    /// Validate scene text, within the default surfel budget; `path` names the file in messages
+    /// and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Scene> {
-        validate(parse_toml(text, path)?, path)
+        validate(parse_toml(text, path)?, path, Budget::default())
     }
 
     /// The style the scene names (`style = "…"`), read; `None` when it names none. A file that
@@ -381,7 +394,7 @@ pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path
     })
 }
 
-fn validate(spec: SceneSpec, path: &Path) -> Result<Scene> {
+fn validate(spec: SceneSpec, path: &Path, mut budget: Budget) -> Result<Scene> {
     let within = |field: &'static str| move |e: Error| e.in_file(path, field);
     let c = &spec.camera;
     let mut camera = Camera::new(
@@ -420,14 +433,22 @@ fn validate(spec: SceneSpec, path: &Path) -> Result<Scene> {
         .with_shutter(shutter)
         .with_lighting(lighting);
     for (i, o) in spec.object.iter().enumerate() {
-        scene = scene.with_object(validate_object(o, i, path, base)?);
+        let object = validate_object(o, i, path, base, budget)?;
+        budget.take(object.surfels().len());
+        scene = scene.with_object(object);
     }
     scene.source = Some(path.to_path_buf());
     scene.style = spec.style.map(|s| base.join(s));
     Ok(scene)
 }
 
-fn validate_object(o: &ObjectSpec, index: usize, path: &Path, base: &Path) -> Result<Object> {
+fn validate_object(
+    o: &ObjectSpec,
+    index: usize,
+    path: &Path,
+    base: &Path,
+    budget: Budget,
+) -> Result<Object> {
     let field = format!("object[{index}]");
     let name = o.name.clone().unwrap_or_else(|| format!("object {index}"));
     let colouring = match &o.colour {
@@ -437,7 +458,7 @@ fn validate_object(o: &ObjectSpec, index: usize, path: &Path, base: &Path) -> Re
         Some(other) => Colouring::from(other),
         None => Colouring::Own,
     };
-    let mut surfels = object_surfels(o, path, base, &field)?;
+    let mut surfels = object_surfels(o, path, base, &field, budget)?;
     colouring.apply(&mut surfels);
     let mut keyframes = Vec::with_capacity(o.keyframe.len());
     // The previous keyframe's rotation as written: its unit axis (none for no rotation) and angle.
@@ -517,8 +538,14 @@ fn turn_past_half(
     })
 }
 
-/// The surfels of an object's shape, in their sources' own colours.
-fn object_surfels(o: &ObjectSpec, path: &Path, base: &Path, field: &str) -> Result<Vec<Surfel>> {
+/// The surfels of an object's shape, in their sources' own colours, within `budget`.
+fn object_surfels(
+    o: &ObjectSpec,
+    path: &Path,
+    base: &Path,
+    field: &str,
+    budget: Budget,
+) -> Result<Vec<Surfel>> {
     let shape_field = format!("{field}.shape");
     let spacing_field = format!("{field}.spacing");
     let no_spacing = |why: &str| match o.spacing {
@@ -534,19 +561,28 @@ fn object_surfels(o: &ObjectSpec, path: &Path, base: &Path, field: &str) -> Resu
             let neighbours = check_neighbours(neighbours.unwrap_or(DEFAULT_NEIGHBOURS))
                 .map_err(|e| e.in_file(path, &shape_field))?;
             let file = base.join(file);
-            return from_point_cloud(&read_ply(&file)?, neighbours)
-                .map_err(|e| e.in_file(&file, ""));
+            let cloud = read_ply(&file)?;
+            if !budget.fits(cloud.positions.len()) {
+                return Err(budget
+                    .exceeded(
+                        "vertices",
+                        &format!("its {} points are", cloud.positions.len()),
+                        "thin the cloud",
+                    )
+                    .in_file(&file, ""));
+            }
+            return from_point_cloud(&cloud, neighbours).map_err(|e| e.in_file(&file, ""));
         }
         Shape::Volume(ref volume) => {
             no_spacing(
                 "a volume makes one surfel per voxel cell its surface crosses: remove this \
                  `spacing` (the distance between voxels is `shape.spacing = [x, y, z]`)",
             )?;
-            return volume.surfels(path, base, &shape_field, MAX_SURFELS_PER_OBJECT);
+            return volume.surfels(path, base, &shape_field, budget);
         }
         Shape::Mesh(ref mesh) => {
             no_spacing("a mesh is sampled into `shape.samples` surfels: remove this `spacing`")?;
-            return mesh.surfels(path, base, &shape_field, MAX_SURFELS_PER_OBJECT);
+            return mesh.surfels(path, base, &shape_field, budget);
         }
         Shape::Sphere { radius } => Primitive::Sphere { radius },
         Shape::Quad { size } => Primitive::Quad { size },
@@ -562,7 +598,7 @@ fn object_surfels(o: &ObjectSpec, path: &Path, base: &Path, field: &str) -> Resu
             "a procedural shape needs `spacing`, the distance between surfels",
         )
     })?;
-    primitive.surfels(spacing).map_err(|e| match &e {
+    primitive.surfels(spacing, budget).map_err(|e| match &e {
         Error::Invalid { field: f, .. } if f == "spacing" => e.in_file(path, field),
         _ => e.in_file(path, &shape_field),
     })
@@ -656,7 +692,8 @@ mod tests {
         .unwrap();
         std::fs::write(dir.join("flat.obj"), "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
         let scene = Path::new("scene.toml");
-        let surfels = |s: &MeshShape| s.surfels(scene, &dir, "object[0].shape", 1000);
+        let surfels =
+            |s: &MeshShape| s.surfels(scene, &dir, "object[0].shape", Budget::new(1000).unwrap());
         let error = |s: &MeshShape| surfels(s).unwrap_err().to_string();
 
         let centred = surfels(&mesh_shape("box.obj", 200, None)).unwrap();
@@ -708,7 +745,12 @@ mod tests {
         let (good, dir) = volume_shape();
         let scene = Path::new("scene.toml");
         let surfels = good
-            .surfels(scene, &dir, "object[0].shape", 1_000_000)
+            .surfels(
+                scene,
+                &dir,
+                "object[0].shape",
+                Budget::new(1_000_000).unwrap(),
+            )
             .unwrap();
         assert!(surfels.len() > 100);
         type Edit = fn(&mut VolumeShape);
@@ -768,7 +810,12 @@ mod tests {
             let mut bad = good.clone();
             change(&mut bad);
             let message = bad
-                .surfels(scene, &dir, "object[0].shape", 1_000_000)
+                .surfels(
+                    scene,
+                    &dir,
+                    "object[0].shape",
+                    Budget::new(1_000_000).unwrap(),
+                )
                 .unwrap_err()
                 .to_string();
             assert!(
@@ -777,7 +824,7 @@ mod tests {
             );
         }
         let message = good
-            .surfels(scene, &dir, "object[0].shape", 100)
+            .surfels(scene, &dir, "object[0].shape", Budget::new(100).unwrap())
             .unwrap_err()
             .to_string();
         assert!(message.contains("object[0].shape.stride") && message.contains("larger stride"));

@@ -13,7 +13,7 @@ use glam::{DMat3, DVec3};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use super::{Surfel, DEFAULT_GREY, MAX_SURFELS_PER_OBJECT};
+use super::{Surfel, DEFAULT_GREY, MAX_SURFEL_BUDGET};
 use crate::error::{Error, Result};
 use crate::math::{outer3, Sym2};
 
@@ -147,15 +147,13 @@ impl Mesh {
 
 /// Surfels sampled from `mesh`'s surface (see the module notes), light grey, `samples` of them:
 /// moved so that the centre of the mesh's bounding box is the origin when `centre` is true. An
-/// error names `samples` (0 or more than [`MAX_SURFELS_PER_OBJECT`]) or `faces` (every triangle
+/// error names `samples` (0 or more than [`MAX_SURFEL_BUDGET`]) or `faces` (every triangle
 /// degenerate: no surface to sample).
 pub fn from_mesh(mesh: &Mesh, samples: usize, centre: bool) -> Result<Vec<Surfel>> {
-    if !(1..=MAX_SURFELS_PER_OBJECT).contains(&samples) {
+    if !(1..=MAX_SURFEL_BUDGET).contains(&samples) {
         return Err(Error::invalid(
             "samples",
-            format!(
-                "{samples}: the number of surfels must be between 1 and {MAX_SURFELS_PER_OBJECT}"
-            ),
+            format!("{samples}: the number of surfels must be between 1 and {MAX_SURFEL_BUDGET}"),
         ));
     }
     let mut sampled = mesh.sample(samples);

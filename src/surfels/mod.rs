@@ -19,6 +19,7 @@ pub use mesh::{from_mesh, Mesh};
 pub use primitives::{cuboid, cylinder, quad, sphere, torus, torus_knot, Primitive};
 pub use volume::{from_volume, IsoSurface, Volume};
 
+use crate::error::{Error, Result};
 use glam::DVec3;
 
 /// Standard deviation of a surfel's Gaussian as a fraction of its cell's side: the sum of
@@ -70,8 +71,74 @@ impl Surfel {
     }
 }
 
-/// Most surfels one object may be sampled into: a spacing typo must not eat the machine.
-pub const MAX_SURFELS_PER_OBJECT: usize = 20_000_000;
+/// Surfels a scene may have unless told otherwise: a spacing typo must not eat the machine.
+/// A surfel costs about 300 bytes at the peak of a render (20 million took 6.1 GB), so this is
+/// about 2.5 GB.
+pub const DEFAULT_SURFEL_BUDGET: usize = 8_000_000;
+
+/// The largest surfel budget that may be asked for.
+pub const MAX_SURFEL_BUDGET: usize = 200_000_000;
+
+/// How many surfels a source may still make: what the scene's budget leaves after the objects
+/// before it. Every source checks it before it allocates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Budget {
+    /// Surfels left.
+    pub left: usize,
+    /// The scene's whole budget.
+    pub total: usize,
+}
+
+impl Default for Budget {
+    fn default() -> Self {
+        Budget {
+            left: DEFAULT_SURFEL_BUDGET,
+            total: DEFAULT_SURFEL_BUDGET,
+        }
+    }
+}
+
+impl Budget {
+    /// A budget of `total` surfels, 1 to [`MAX_SURFEL_BUDGET`]; an error names `max_surfels`.
+    pub fn new(total: usize) -> Result<Budget> {
+        if (1..=MAX_SURFEL_BUDGET).contains(&total) {
+            Ok(Budget { left: total, total })
+        } else {
+            Err(Error::invalid(
+                "max_surfels",
+                format!("{total}: allow between 1 and {MAX_SURFEL_BUDGET} surfels"),
+            ))
+        }
+    }
+
+    /// The budget after `count` surfels were made.
+    pub fn take(&mut self, count: usize) {
+        self.left = self.left.saturating_sub(count);
+    }
+
+    /// Whether `count` more surfels fit.
+    #[must_use]
+    pub fn fits(&self, count: usize) -> bool {
+        count <= self.left
+    }
+
+    /// The error for a `field` that asks for more surfels than fit, with `advice` on making
+    /// fewer.
+    pub(crate) fn exceeded(&self, field: &str, asked: &str, advice: &str) -> Error {
+        let left = if self.left < self.total {
+            format!(
+                "the {} surfels left of the scene's budget of {}",
+                self.left, self.total
+            )
+        } else {
+            format!("the scene's budget of {} surfels", self.total)
+        };
+        Error::invalid(
+            field,
+            format!("{asked} more than {left}: {advice}, or raise the budget (--max-surfels)"),
+        )
+    }
+}
 
 /// How an object's surfels are coloured.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use super::{Surfel, DEFAULT_GREY, MAX_SURFELS_PER_OBJECT, SIGMA_PER_SPACING};
+use super::{Budget, Surfel, DEFAULT_GREY, SIGMA_PER_SPACING};
 use crate::error::{Error, Result};
 
 /// A procedural surface, centred at the origin.
@@ -54,11 +54,12 @@ pub enum Primitive {
 }
 
 impl Primitive {
-    /// Sample the surface into light grey surfels about `spacing` apart, at most
-    /// [`MAX_SURFELS_PER_OBJECT`]. Errors name the field: `spacing` (not finite and positive, or
-    /// so small that the budget would be exceeded), a dimension (`radius`, `size[1]`, …) that is
-    /// not finite and positive, or the torus knot itself when p or q is 0.
-    pub fn surfels(&self, spacing: f64) -> Result<Vec<Surfel>> {
+    /// Sample the surface into light grey surfels about `spacing` apart, within `budget` (counted
+    /// on the sampling grid before anything is allocated). Errors name the field: `spacing` (not
+    /// finite and positive, or so small that the budget would be exceeded), a dimension
+    /// (`radius`, `size[1]`, …) that is not finite and positive, or the torus knot itself when p
+    /// or q is 0.
+    pub fn surfels(&self, spacing: f64, budget: Budget) -> Result<Vec<Surfel>> {
         if !(spacing.is_finite() && spacing > 0.0) {
             return Err(Error::invalid(
                 "spacing",
@@ -90,45 +91,45 @@ impl Primitive {
                 return Err(Error::invalid("", "a torus knot needs p ≥ 1 and q ≥ 1"));
             }
         }
-        sample(self, spacing).ok_or_else(|| {
-            Error::invalid(
+        sample(self, spacing, budget).ok_or_else(|| {
+            budget.exceeded(
                 "spacing",
-                format!(
-                    "{spacing} would make more than {MAX_SURFELS_PER_OBJECT} surfels: use a larger spacing"
-                ),
+                &format!("{spacing} would make"),
+                "use a larger spacing",
             )
         })
     }
 }
 
-/// A sphere of `radius` sampled `spacing` apart (see [`Primitive::surfels`]).
+/// A sphere of `radius` sampled `spacing` apart, within the default budget (see
+/// [`Primitive::surfels`]).
 pub fn sphere(radius: f64, spacing: f64) -> Result<Vec<Surfel>> {
-    Primitive::Sphere { radius }.surfels(spacing)
+    Primitive::Sphere { radius }.surfels(spacing, Budget::default())
 }
 
 /// A rectangle of `size` in the xy plane facing +z, sampled `spacing` apart.
 pub fn quad(size: [f64; 2], spacing: f64) -> Result<Vec<Surfel>> {
-    Primitive::Quad { size }.surfels(spacing)
+    Primitive::Quad { size }.surfels(spacing, Budget::default())
 }
 
 /// An axis-aligned box of `size`, sampled `spacing` apart.
 pub fn cuboid(size: [f64; 3], spacing: f64) -> Result<Vec<Surfel>> {
-    Primitive::Box { size }.surfels(spacing)
+    Primitive::Box { size }.surfels(spacing, Budget::default())
 }
 
 /// A capped cylinder along y, sampled `spacing` apart.
 pub fn cylinder(radius: f64, length: f64, spacing: f64) -> Result<Vec<Surfel>> {
-    Primitive::Cylinder { radius, length }.surfels(spacing)
+    Primitive::Cylinder { radius, length }.surfels(spacing, Budget::default())
 }
 
 /// A torus in the xz plane around y, sampled `spacing` apart.
 pub fn torus(major: f64, minor: f64, spacing: f64) -> Result<Vec<Surfel>> {
-    Primitive::Torus { major, minor }.surfels(spacing)
+    Primitive::Torus { major, minor }.surfels(spacing, Budget::default())
 }
 
 /// A (p, q) torus knot, sampled `spacing` apart.
 pub fn torus_knot(p: u32, q: u32, scale: f64, tube: f64, spacing: f64) -> Result<Vec<Surfel>> {
-    Primitive::TorusKnot { p, q, scale, tube }.surfels(spacing)
+    Primitive::TorusKnot { p, q, scale, tube }.surfels(spacing, Budget::default())
 }
 
 impl Surfel {
@@ -152,8 +153,12 @@ impl Surfel {
 }
 
 /// Sample `primitive` into surfels about `spacing` apart, or `None` past the budget.
-fn sample(primitive: &Primitive, spacing: f64) -> Option<Vec<Surfel>> {
-    let mut out = Sampler::default();
+fn sample(primitive: &Primitive, spacing: f64, budget: Budget) -> Option<Vec<Surfel>> {
+    let mut out = Sampler {
+        surfels: Vec::new(),
+        budget,
+        over_budget: false,
+    };
     match *primitive {
         Primitive::Sphere { radius } => sample_sphere(radius, spacing, &mut out),
         Primitive::Quad { size } => sample_quad(
@@ -245,17 +250,17 @@ fn sample(primitive: &Primitive, spacing: f64) -> Option<Vec<Surfel>> {
     (!out.over_budget).then_some(out.surfels)
 }
 
-/// Surfels being sampled, within [`MAX_SURFELS_PER_OBJECT`].
-#[derive(Default)]
+/// Surfels being sampled, within a budget.
 struct Sampler {
     surfels: Vec<Surfel>,
+    budget: Budget,
     over_budget: bool,
 }
 
 impl Sampler {
     /// Whether `count` more surfels fit; remembers when they do not.
     fn reserve(&mut self, count: usize) -> bool {
-        let fits = self.surfels.len().saturating_add(count) <= MAX_SURFELS_PER_OBJECT;
+        let fits = self.budget.fits(self.surfels.len().saturating_add(count));
         self.over_budget |= !fits;
         fits
     }
@@ -436,7 +441,7 @@ mod tests {
             ),
         ];
         for (primitive, expected) in cases {
-            let surfels = primitive.surfels(0.02).unwrap();
+            let surfels = primitive.surfels(0.02, Budget::default()).unwrap();
             let area = total_area(&surfels);
             assert!(
                 (area - expected).abs() < 2e-3 * expected,
@@ -456,6 +461,7 @@ mod tests {
                 tube,
             },
             0.01,
+            Budget::default(),
         )
         .unwrap();
         // Pappus: a tube of radius r around a curve of length L (curvature radius ≫ r) has area 2πrL.
@@ -504,7 +510,7 @@ mod tests {
             },
         ];
         for primitive in cases {
-            for s in primitive.surfels(0.05).unwrap() {
+            for s in primitive.surfels(0.05, Budget::default()).unwrap() {
                 assert!((s.normal.length() - 1.0).abs() < 1e-9);
                 let outward = match primitive {
                     Primitive::Torus { major, .. } => {
@@ -536,6 +542,7 @@ mod tests {
                 tube,
             },
             0.02,
+            Budget::default(),
         )
         .unwrap();
         // Stepping outward along the normal by a bit of the tube radius must leave the tube:
@@ -568,20 +575,20 @@ mod tests {
         let sliver = Primitive::Quad {
             size: [1000.0, 1e-9],
         };
-        assert!(sample(&sliver, 1e-6).is_none());
+        assert!(sample(&sliver, 1e-6, Budget::default()).is_none());
         let thin_torus = Primitive::Torus {
             major: 1e3,
             minor: 1e-9,
         };
-        assert!(sample(&thin_torus, 1e-5).is_none());
+        assert!(sample(&thin_torus, 1e-5, Budget::default()).is_none());
     }
 
     #[test]
     fn sampling_density_follows_spacing() {
-        let coarse = sample(&Primitive::Sphere { radius: 1.0 }, 0.1)
+        let coarse = sample(&Primitive::Sphere { radius: 1.0 }, 0.1, Budget::default())
             .unwrap()
             .len();
-        let fine = sample(&Primitive::Sphere { radius: 1.0 }, 0.05)
+        let fine = sample(&Primitive::Sphere { radius: 1.0 }, 0.05, Budget::default())
             .unwrap()
             .len();
         assert!((fine as f64 / coarse as f64 - 4.0).abs() < 0.05);

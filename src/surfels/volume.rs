@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
-use super::{Surfel, DEFAULT_GREY, SIGMA_PER_SPACING};
+use super::{Budget, Surfel, DEFAULT_GREY, SIGMA_PER_SPACING};
 use crate::error::{Error, Result};
 use crate::math::Sym2;
 
@@ -163,15 +163,11 @@ impl Volume {
     }
 }
 
-/// The surfels of `volume`'s iso-surface (light grey; see [`Volume::iso_surfels`]), at most
-/// `max_surfels`. Errors name the field: `spacing[i]` (outside [`SPACING_RANGE`]), `iso` (not
+/// The surfels of `volume`'s iso-surface (light grey; see [`Volume::iso_surfels`]), within
+/// `budget`. Errors name the field: `spacing[i]` (outside [`SPACING_RANGE`]), `iso` (not
 /// finite, or crossing no cell), `stride` (0, more than the smallest dimension less one, or so
-/// small that the surface has more than `max_surfels` surfels).
-pub fn from_volume(
-    volume: &Volume,
-    surface: &IsoSurface,
-    max_surfels: usize,
-) -> Result<Vec<Surfel>> {
+/// small that the surface has more surfels than the budget allows).
+pub fn from_volume(volume: &Volume, surface: &IsoSurface, budget: Budget) -> Result<Vec<Surfel>> {
     for (axis, s) in surface.spacing.to_array().into_iter().enumerate() {
         let (lo, hi) = SPACING_RANGE;
         if !(s >= lo && s <= hi) {
@@ -198,14 +194,14 @@ pub fn from_volume(
             ),
         ));
     }
-    let surfels = volume.iso_surfels(surface, max_surfels).ok_or_else(|| {
-        Error::invalid(
+    let surfels = volume.iso_surfels(surface, budget.left).ok_or_else(|| {
+        budget.exceeded(
             "stride",
-            format!(
-                "the surface at iso = {} has more than {max_surfels} surfels at stride \
-                 {stride}: use a larger stride",
+            &format!(
+                "the surface at iso = {} has, at stride {stride},",
                 surface.iso
             ),
+            "use a larger stride",
         )
     })?;
     if surfels.is_empty() {
