@@ -174,8 +174,8 @@ fn half_turns_lights_colours_and_budgets_are_rejected() {
     // Whole turns are orientations slerp cannot tell from none (720° is the identity), and a
     // step past a half turn about one axis would be drawn the short way round.
     for (name, from, to, needle) in [
-        ("two-turns", 0, 720, "less than a whole turn"),
-        ("one-turn", 0, 360, "less than a whole turn"),
+        ("two-turns", 0, 720, "turns 720° from the previous keyframe"),
+        ("one-turn", 0, 360, "turns 360° from the previous keyframe"),
         (
             "long-way",
             170,

@@ -505,21 +505,15 @@ fn validate_object(
 
 /// Why a keyframe's rotation, written as `axis` and `degrees`, cannot follow the `previous`
 /// one's, if it cannot. Rotations between keyframes are interpolated by slerp, the shorter way
-/// between two orientations, so a step must turn less than 180°; and an orientation is at most a
-/// turn, so a rotation of 360° or more says nothing an angle below 360° does not (720° would
-/// be drawn as no rotation at all). The quaternions cannot tell either case (720° is the
-/// identity), so the angles as written are checked: about one axis, the step between the angles;
-/// about two different axes, the turn between the orientations (which [`Motion::new`] checks).
+/// between two orientations, so a step must turn less than 180°. The quaternions cannot tell
+/// whole turns (720° is the identity, and 0° → 720° would be drawn as no rotation at all), so
+/// the angles as written are compared: about one axis (or from no rotation) the step between
+/// them; about two different axes the orientations, which [`Motion::new`] checks. A spin of many
+/// turns is written as keyframes less than 180° apart: 0, 90, 180, 270, 360, 450, …
 fn turn_past_half(
     previous: Option<(Option<DVec3>, f64)>,
     (axis, degrees): (Option<DVec3>, f64),
 ) -> Option<String> {
-    if degrees.abs() >= 360.0 {
-        return Some(format!(
-            "degrees = {degrees}: a keyframe gives an orientation, less than a whole turn \
-             (|degrees| < 360); to spin, give keyframes less than 180° apart"
-        ));
-    }
     let (previous_axis, previous_degrees) = previous?;
     // Angles about one axis (or from no rotation) compare directly; the opposite axis turns the
     // other way.

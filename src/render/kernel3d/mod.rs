@@ -15,7 +15,7 @@
 pub(super) mod integral;
 mod kernel;
 
-use super::{instant_layer, MethodStats, Render, Stats, Subframes};
+use super::{instant_layer, MethodStats, Render, Stats, Subframes, MAX_SUBFRAMES};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{Cull, Culled, Instant};
@@ -37,33 +37,55 @@ pub enum Visibility {
     Approximate,
 }
 
+/// Most kernels held at once (about 250 bytes each, so about 500 MB). Sub-frames are rendered in
+/// passes of as many as fit.
+pub const MAX_KERNELS_PER_PASS: usize = 1 << 21;
+
 /// What the kernel renderer did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct KernelStats {
     /// Sub-frames the exposure was cut into.
     pub subframes: usize,
+    /// The sub-frames the plan asked for, when more than [`MAX_SUBFRAMES`] (equal sub-frames
+    /// were drawn instead).
+    pub planned_subframes: Option<usize>,
+    /// Passes the sub-frames were rendered in (more than one when their kernels would not fit
+    /// in [`MAX_KERNELS_PER_PASS`]).
+    pub passes: usize,
+    /// The most kernels held at once.
+    pub peak_kernels: usize,
     /// Kernels made, over all sub-frames.
     pub kernels: usize,
     /// Fragments resolved, over all sub-frames.
     pub fragments: usize,
     /// The most fragments on one pixel in one sub-frame.
     pub peak_fragments_per_pixel: usize,
-    /// The most fragments held at once for one tile (the A-buffer's working memory, per thread).
-    pub peak_fragments_per_tile: usize,
+    /// The most fragments held at once by one worker: one tile row's (the A-buffer's working
+    /// memory, per thread).
+    pub peak_fragments_held: usize,
 }
 
 impl KernelStats {
     /// Human-readable account for `--explain`.
     #[must_use]
     pub fn explain(&self) -> String {
+        let capped = match self.planned_subframes {
+            Some(planned) => format!(
+                "  the plan's {planned} sub-frames are more than {MAX_SUBFRAMES}: {MAX_SUBFRAMES} equal sub-frames drawn instead\n"
+            ),
+            None => String::new(),
+        };
         format!(
-            "kernel3d: {} sub-frame(s), {} kernels, {} fragments; peak {} fragments on one pixel, {} in one tile ({} KiB)\n",
+            "kernel3d: {} sub-frame(s) in {} pass(es) of at most {} kernels (held at once: {}), {} kernels, {} fragments; peak {} fragments on one pixel, {} held at once by a worker (one tile row, {} KiB)\n{capped}",
             self.subframes,
+            self.passes,
+            MAX_KERNELS_PER_PASS,
+            self.peak_kernels,
             self.kernels,
             self.fragments,
             self.peak_fragments_per_pixel,
-            self.peak_fragments_per_tile,
-            self.peak_fragments_per_tile * std::mem::size_of::<Fragment>() / 1024
+            self.peak_fragments_held,
+            self.peak_fragments_held * std::mem::size_of::<Fragment>() / 1024
         )
     }
 }
@@ -78,10 +100,11 @@ pub(super) fn render(
 ) -> Render {
     let camera = &scene.camera;
     let (width, height) = (camera.width, camera.height);
-    let times = subframe_times(scene, plan, subframes);
+    let (times, planned_subframes) = subframe_times(scene, plan, subframes);
     let mut stats = Stats::default();
     let mut kernel3d = KernelStats {
         subframes: times.len() - 1,
+        planned_subframes,
         ..KernelStats::default()
     };
     // Sub-frame windows on the shutter-mass axis.
@@ -93,13 +116,14 @@ pub(super) fn render(
         mass = next;
     }
     let exposure = [0.0, mass];
-    // Moving objects get a kernel per sub-frame; a still object one kernel for the whole
-    // exposure, which the A-buffer clips to whatever time it needs.
-    let mut kernels = Vec::new();
+    // A still object has one kernel for the whole exposure, which the A-buffer clips to whatever
+    // time it needs; a moving one a kernel per sub-frame.
+    let mut still_kernels = Vec::new();
+    let mut moving_surfels = 0;
     for (object, object_plan) in scene.objects.iter().zip(&plan.objects) {
         if object_plan.motion == ObjectMotion::Still {
             let span = [scene.shutter.open, scene.shutter.close];
-            kernels.extend(kernels_over(
+            still_kernels.extend(kernels_over(
                 scene,
                 object,
                 span,
@@ -107,13 +131,9 @@ pub(super) fn render(
                 &mut stats.culled,
             ));
         } else {
-            for (pair, &window) in times.windows(2).zip(&windows) {
-                let span = [pair[0], pair[1]];
-                kernels.extend(kernels_over(scene, object, span, window, &mut stats.culled));
-            }
+            moving_surfels += object.surfels().len();
         }
     }
-
     // §5.1's depth buffers, one per sub-frame end (shared by the sub-frames that meet there).
     let visible_depth: Option<Vec<Vec<f32>>> = (visibility == Visibility::Approximate).then(|| {
         times
@@ -121,40 +141,95 @@ pub(super) fn render(
             .map(|&t| instant_layer(scene, t, &mut Stats::default()).front_depth)
             .collect()
     });
+
+    // Passes of consecutive sub-frames, as many as keep the kernels within MAX_KERNELS_PER_PASS.
+    // Fragments of different passes cover disjoint parts of the exposure, so resolving each pass
+    // over its own part and adding them up is exact.
+    let per_pass = (MAX_KERNELS_PER_PASS.saturating_sub(still_kernels.len()))
+        .checked_div(moving_surfels)
+        .unwrap_or(windows.len())
+        .clamp(1, windows.len());
+    let passes = windows.len().div_ceil(per_pass);
+    let still_off_screen = if passes > 1 {
+        still_kernels
+            .iter()
+            .filter(|k| k.screen_bound(camera).is_none())
+            .count()
+    } else {
+        0
+    };
     let grid = TileGrid::new(width, height);
-    let off_screen = stats.culled.off_screen;
-    let (lists, bounds) = bin(scene, &grid, &kernels, &mut stats.culled);
-    kernel3d.kernels = kernels.len() - (stats.culled.off_screen - off_screen);
-    let results: Vec<(Vec<Resolved>, usize, usize)> = (0..grid.count())
-        .into_par_iter()
-        .map(|tile| {
-            let work = TileWork {
-                kernels: &kernels,
-                bounds: &bounds,
-                list: lists.list(tile),
-            };
-            resolve_tile(
-                scene,
-                &work,
-                grid.pixels(tile),
-                exposure,
-                &windows,
-                visible_depth.as_deref(),
-            )
-        })
-        .collect();
-    let mut blocks = Vec::with_capacity(results.len());
-    for (resolved, count, peak_pixel) in results {
-        kernel3d.fragments += count;
-        kernel3d.peak_fragments_per_pixel = kernel3d.peak_fragments_per_pixel.max(peak_pixel);
-        kernel3d.peak_fragments_per_tile = kernel3d.peak_fragments_per_tile.max(count);
-        blocks.push(resolved);
+    let mut sums = vec![Resolved::default(); width as usize * height as usize];
+    for (pass, first) in (0..windows.len()).step_by(per_pass).enumerate() {
+        let last = (first + per_pass).min(windows.len());
+        let mut kernels = still_kernels.clone();
+        for (object, object_plan) in scene.objects.iter().zip(&plan.objects) {
+            if object_plan.motion != ObjectMotion::Still {
+                for k in first..last {
+                    let span = [times[k], times[k + 1]];
+                    kernels.extend(kernels_over(
+                        scene,
+                        object,
+                        span,
+                        windows[k],
+                        &mut stats.culled,
+                    ));
+                }
+            }
+        }
+        let mut culled = Culled::default();
+        let (lists, bounds) = bin(scene, &grid, &kernels, &mut culled);
+        // Still kernels are in every pass: count them, and those off screen, once.
+        let (repeated, repeated_off_screen) = if pass == 0 {
+            (0, 0)
+        } else {
+            (still_kernels.len(), still_off_screen)
+        };
+        stats.culled.off_screen += culled.off_screen - repeated_off_screen;
+        kernel3d.kernels += (kernels.len() - repeated) - (culled.off_screen - repeated_off_screen);
+        let span = [windows[first][0], windows[last - 1][1]];
+        let depths = visible_depth.as_deref().map(|d| &d[first..=last]);
+        let results: Vec<TileResult> = (0..grid.count())
+            .into_par_iter()
+            .map(|tile| {
+                let work = TileWork {
+                    kernels: &kernels,
+                    bounds: &bounds,
+                    list: lists.list(tile),
+                };
+                resolve_tile(
+                    scene,
+                    &work,
+                    grid.pixels(tile),
+                    span,
+                    &windows[first..last],
+                    depths,
+                )
+            })
+            .collect();
+        let mut blocks = Vec::with_capacity(results.len());
+        for tile in results {
+            kernel3d.fragments += tile.fragments;
+            kernel3d.peak_fragments_per_pixel =
+                kernel3d.peak_fragments_per_pixel.max(tile.peak_pixel);
+            kernel3d.peak_fragments_held = kernel3d.peak_fragments_held.max(tile.peak_held);
+            blocks.push(tile.resolved);
+        }
+        grid.scatter(&blocks, |pixel, r| {
+            let sum = &mut sums[pixel];
+            for c in 0..3 {
+                sum.colour[c] += r.colour[c];
+            }
+            sum.background += r.background;
+        });
+        kernel3d.passes += 1;
+        kernel3d.peak_kernels = kernel3d.peak_kernels.max(kernels.len());
     }
     let bg = scene.background.map(f64::from);
-    let mut pixels = vec![[0.0f32; 3]; width as usize * height as usize];
-    grid.scatter(&blocks, |pixel, r| {
-        pixels[pixel] = [0, 1, 2].map(|c| (r.colour[c] + r.background * bg[c]) as f32);
-    });
+    let pixels = sums
+        .iter()
+        .map(|r| [0, 1, 2].map(|c| (r.colour[c] + r.background * bg[c]) as f32))
+        .collect();
     stats.frames = 1;
     stats.footprints = kernel3d.kernels;
     stats.method = MethodStats::Kernel3d(kernel3d);
@@ -167,16 +242,18 @@ pub(super) fn render(
 }
 
 /// Sub-frame boundaries over the exposure: equal sub-frames, or the union of the plan's
-/// sub-segment ends of every moving object (one sub-frame when nothing moves).
-fn subframe_times(scene: &Scene, plan: &Plan, subframes: Subframes) -> Vec<f64> {
+/// sub-segment ends of every moving object (one sub-frame when nothing moves) unless that is more
+/// than [`MAX_SUBFRAMES`], when [`MAX_SUBFRAMES`] equal ones stand in and the plan's count is
+/// returned too.
+fn subframe_times(scene: &Scene, plan: &Plan, subframes: Subframes) -> (Vec<f64>, Option<usize>) {
     let (open, close) = (scene.shutter.open, scene.shutter.close);
+    let equal = |n: usize| -> Vec<f64> {
+        (0..=n)
+            .map(|i| open + (close - open) * i as f64 / n as f64)
+            .collect()
+    };
     let mut times = match subframes {
-        Subframes::Equal(n) => {
-            let n = n.max(1);
-            (0..=n)
-                .map(|i| open + (close - open) * i as f64 / n as f64)
-                .collect()
-        }
+        Subframes::Equal(n) => equal(n.max(1)),
         Subframes::Planned { .. } => {
             let mut times = vec![open, close];
             for object in &plan.objects {
@@ -189,7 +266,11 @@ fn subframe_times(scene: &Scene, plan: &Plan, subframes: Subframes) -> Vec<f64> 
     };
     times.sort_by(f64::total_cmp);
     times.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * (close - open));
-    times
+    let planned = times.len() - 1;
+    if planned > MAX_SUBFRAMES {
+        return (equal(MAX_SUBFRAMES), Some(planned));
+    }
+    (times, None)
 }
 
 /// The kernels of `object`'s surfels over [t0, t1], whose shutter-mass interval is `window`.
@@ -293,7 +374,9 @@ struct TileWork<'a> {
 }
 
 /// The fragments of the tile over pixels [x0, x1) × [y0, y1) resolved per pixel, the number of
-/// fragments in the tile, and the most on one pixel.
+/// fragments in the tile, the most on one pixel, and the most held at once. Fragments are made
+/// and resolved one row of the tile at a time, so a worker holds at most one row's: a row of
+/// [`TILE_PX`] pixels times the kernels reaching it.
 fn resolve_tile(
     scene: &Scene,
     work: &TileWork,
@@ -301,7 +384,7 @@ fn resolve_tile(
     exposure: [f64; 2],
     windows: &[[f64; 2]],
     visible_depth: Option<&[Vec<f32>]>,
-) -> (Vec<Resolved>, usize, usize) {
+) -> TileResult {
     let camera = &scene.camera;
     let w = (x1 - x0) as usize;
     let centre = DVec2::new(f64::from(camera.width), f64::from(camera.height)) * 0.5;
@@ -312,41 +395,70 @@ fn resolve_tile(
             -1.0,
         )
     };
-    let mut fragments: Vec<Vec<Fragment>> = vec![Vec::new(); w * (y1 - y0) as usize];
-    for &index in work.list {
-        let prepared = work.kernels[index as usize].prepare(index);
-        let [bx0, by0, bx1, by1] = work.bounds[index as usize];
-        for y in y0.max(by0)..y1.min(by1) {
-            for x in x0.max(bx0)..x1.min(bx1) {
+    let prepared: Vec<_> = work
+        .list
+        .iter()
+        .map(|&index| {
+            (
+                work.kernels[index as usize].prepare(index),
+                work.bounds[index as usize],
+            )
+        })
+        .collect();
+    let mut out = TileResult {
+        resolved: Vec::with_capacity(w * (y1 - y0) as usize),
+        ..TileResult::default()
+    };
+    let mut fragments: Vec<Vec<Fragment>> = vec![Vec::new(); w];
+    for y in y0..y1 {
+        for (kernel, [bx0, by0, bx1, by1]) in &prepared {
+            if !(*by0..*by1).contains(&y) {
+                continue;
+            }
+            for x in x0.max(*bx0)..x1.min(*bx1) {
                 let pixel = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                if let Some(f) = prepared.fragment(ray(x, y), pixel, camera.near) {
-                    fragments[(y - y0) as usize * w + (x - x0) as usize].push(f);
+                if let Some(f) = kernel.fragment(ray(x, y), pixel, camera.near) {
+                    fragments[(x - x0) as usize].push(f);
                 }
             }
         }
-    }
-    let count = fragments.iter().map(Vec::len).sum();
-    let peak = fragments.iter().map(Vec::len).max().unwrap_or(0);
-    let resolved = fragments
-        .iter_mut()
-        .enumerate()
-        .map(|(i, list)| match visible_depth {
-            None => resolve_exact(list, exposure),
-            Some(depths) => {
-                let p = (y0 as usize + i / w) * camera.width as usize + x0 as usize + i % w;
-                // §5.5: the passes run per sub-frame and add up, weighted by the shutter.
-                let mut sum = Resolved::default();
-                for (window, ends) in windows.iter().zip(depths.windows(2)) {
-                    let (start, end) = (&ends[0], &ends[1]);
-                    let r = resolve_approximate(list, *window, [start[p], end[p]]);
-                    for c in 0..3 {
-                        sum.colour[c] += r.colour[c];
+        let held: usize = fragments.iter().map(Vec::len).sum();
+        out.fragments += held;
+        out.peak_held = out.peak_held.max(held);
+        for (i, list) in fragments.iter_mut().enumerate() {
+            out.peak_pixel = out.peak_pixel.max(list.len());
+            out.resolved.push(match visible_depth {
+                None => resolve_exact(list, exposure),
+                Some(depths) => {
+                    let p = y as usize * camera.width as usize + x0 as usize + i;
+                    // §5.5: the passes run per sub-frame and add up, weighted by the shutter.
+                    let mut sum = Resolved::default();
+                    for (window, ends) in windows.iter().zip(depths.windows(2)) {
+                        let (start, end) = (&ends[0], &ends[1]);
+                        let r = resolve_approximate(list, *window, [start[p], end[p]]);
+                        for c in 0..3 {
+                            sum.colour[c] += r.colour[c];
+                        }
+                        sum.background += r.background;
                     }
-                    sum.background += r.background;
+                    sum
                 }
-                sum
-            }
-        })
-        .collect();
-    (resolved, count, peak)
+            });
+            list.clear();
+        }
+    }
+    out
+}
+
+/// One tile resolved, and what it took.
+#[derive(Default)]
+struct TileResult {
+    /// The tile's pixels, row by row.
+    resolved: Vec<Resolved>,
+    /// Fragments made.
+    fragments: usize,
+    /// The most fragments on one pixel.
+    peak_pixel: usize,
+    /// The most fragments held at once (one row's).
+    peak_held: usize,
 }
