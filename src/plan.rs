@@ -26,6 +26,12 @@ pub const TOLERANCE_RANGE_PX: std::ops::RangeInclusive<f64> = 1e-3..=64.0;
 /// Most sub-segments per keyframe interval: bounds the work for absurdly fast motion.
 pub const MAX_SEGMENTS_PER_INTERVAL: usize = 256;
 
+/// Most surfel sub-segments of the whole scene (one motion ellipse each in `blur` and in a
+/// hint's trail, about 120 bytes): a moving object gets at most this share, divided by the
+/// scene's moving surfels, of sub-segments in all, whatever its keyframes ask for (a scene of
+/// 20,000 keyframes asks for at least as many).
+pub const MAX_MOTION_FOOTPRINTS: usize = 1 << 24;
+
 /// Surfels probed per object to measure its screen paths.
 const PROBES: usize = 64;
 
@@ -47,9 +53,19 @@ pub enum ObjectMotion {
         deviation_px: f64,
         /// Longest sub-segment chord, px.
         longest_segment_px: f64,
-        /// Whether [`MAX_SEGMENTS_PER_INTERVAL`] stopped the subdivision before the tolerance held.
-        capped: bool,
+        /// What stopped the subdivision before the tolerance held, if anything.
+        capped: Option<SegmentCap>,
     },
+}
+
+/// Why an object's sub-segments stopped short of its tolerance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SegmentCap {
+    /// A keyframe interval reached [`MAX_SEGMENTS_PER_INTERVAL`].
+    PerInterval,
+    /// The object reached its share of [`MAX_MOTION_FOOTPRINTS`]: this many equal sub-segments
+    /// over the exposure, whatever its keyframes.
+    Footprints(usize),
 }
 
 /// The plan for one object.
@@ -86,22 +102,30 @@ impl<'a> Plan<'a> {
     pub fn new(scene: &'a Scene, method: &Method) -> Result<Plan<'a>> {
         method.check()?;
         let tolerance_px = method.tolerance_px();
+        let (open, close) = (scene.shutter.open, scene.shutter.close);
+        let moving_surfels: usize = scene
+            .objects
+            .iter()
+            .filter(|o| o.motion.moves_within(open, close))
+            .map(|o| o.surfels().len())
+            .sum();
+        let max_segments = MAX_MOTION_FOOTPRINTS
+            .checked_div(moving_surfels)
+            .unwrap_or(MAX_MOTION_FOOTPRINTS)
+            .max(1);
         let objects = scene
             .objects
             .iter()
             .map(|object| ObjectPlan {
                 name: object.name.clone(),
                 surfels: object.surfels().len(),
-                motion: if object
-                    .motion
-                    .moves_within(scene.shutter.open, scene.shutter.close)
-                {
+                motion: if object.motion.moves_within(open, close) {
                     plan_motion(
                         &scene.camera,
                         object,
-                        scene.shutter.open,
-                        scene.shutter.close,
+                        [open, close],
                         tolerance_px,
+                        max_segments,
                     )
                 } else {
                     ObjectMotion::Still
@@ -164,10 +188,14 @@ impl<'a> Plan<'a> {
                         segments.len(),
                         if segments.len() == 1 { "" } else { "s" },
                     ));
-                    if *capped {
-                        line(format!(
+                    match capped {
+                        Some(SegmentCap::PerInterval) => line(format!(
                             "    capped at {MAX_SEGMENTS_PER_INTERVAL} sub-segments per keyframe interval: the tolerance does not hold"
-                        ));
+                        )),
+                        Some(SegmentCap::Footprints(n)) => line(format!(
+                            "    capped at {n} equal sub-segments over the exposure, the object's share of {MAX_MOTION_FOOTPRINTS} motion footprints for the scene: the tolerance does not hold"
+                        )),
+                        None => {}
                     }
                 }
             }
@@ -257,12 +285,14 @@ fn measure(
     (deviation, longest)
 }
 
+/// The sub-segments of `object`'s motion over [open, close], within `tolerance_px` unless more
+/// than `max_segments` would be needed: then `max_segments` equal ones, marked capped.
 fn plan_motion(
     camera: &Camera,
     object: &Object,
-    open: f64,
-    close: f64,
+    [open, close]: [f64; 2],
     tolerance_px: f64,
+    max_segments: usize,
 ) -> ObjectMotion {
     let stride = object.surfels().len().div_ceil(PROBES).max(1);
     let probes: Vec<usize> = (0..object.surfels().len()).step_by(stride).collect();
@@ -271,8 +301,11 @@ fn plan_motion(
     breaks.push(close);
 
     let (mut segments, mut deviation_px, mut longest_segment_px, mut capped) =
-        (Vec::new(), 0.0f64, 0.0f64, false);
+        (Vec::new(), 0.0f64, 0.0f64, None);
     for pair in breaks.windows(2) {
+        if segments.len() > max_segments {
+            break;
+        }
         let (t0, t1) = (pair[0], pair[1]);
         let mut k = 1;
         let (deviation, longest) = loop {
@@ -280,7 +313,9 @@ fn plan_motion(
             let max_length = SEGMENT_LENGTH_PER_TOLERANCE * tolerance_px;
             let holds = deviation <= tolerance_px && longest <= max_length;
             if holds || k >= MAX_SEGMENTS_PER_INTERVAL {
-                capped |= !holds;
+                if !holds {
+                    capped = Some(SegmentCap::PerInterval);
+                }
                 break (deviation, longest);
             }
             // Chord deviation of a smooth path falls as 1/k², chord length as 1/k: jump to the
@@ -297,6 +332,12 @@ fn plan_motion(
         deviation_px = deviation_px.max(deviation);
         longest_segment_px = longest_segment_px.max(longest);
         segments.extend(pieces(t0, t1, k));
+    }
+    if segments.len() > max_segments {
+        segments = pieces(open, close, max_segments).collect();
+        (deviation_px, longest_segment_px) =
+            measure(camera, object, &probes, open, close, max_segments);
+        capped = Some(SegmentCap::Footprints(max_segments));
     }
     let path_px = probes
         .iter()

@@ -7,7 +7,7 @@ mod common;
 
 use common::*;
 use glam::{DQuat, DVec3};
-use streak::plan::{ObjectMotion, MAX_SEGMENTS_PER_INTERVAL};
+use streak::plan::{ObjectMotion, SegmentCap, MAX_MOTION_FOOTPRINTS, MAX_SEGMENTS_PER_INTERVAL};
 use streak::render::{PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
 use streak::scene::Pose;
 use streak::scene::{Shutter, ShutterShape};
@@ -366,6 +366,34 @@ mod stiff {
     }
 
     #[test]
+    fn twenty_thousand_keyframes_keep_the_motion_footprints_within_their_budget() {
+        // A square of 2,500 surfels zigzagging through 20,000 keyframes: one sub-segment per
+        // keyframe interval would already be 5·10⁷ motion ellipses. The plan cuts the exposure
+        // into the object's share of the budget instead, and says so.
+        let camera = camera(64, 64);
+        let keys: Vec<(f64, Pose)> = (0..=20_000)
+            .map(|i| {
+                let x = if i % 2 == 0 { -0.5 } else { 0.5 };
+                (f64::from(i) / 20_000.0, pose(DVec3::new(x, 0.0, 0.0), 0.0))
+            })
+            .collect();
+        let square = patch(DVec3::ZERO, [2.0, 2.0], 0.04, false);
+        let surfels = square.len();
+        let zigzag = scene(camera, vec![object(square, motion(&keys))]);
+        let plan = Plan::new(&zigzag, &Method::BLUR).unwrap();
+        let ObjectMotion::Moving {
+            segments, capped, ..
+        } = &plan.objects[0].motion
+        else {
+            panic!("the square moves");
+        };
+        let share = MAX_MOTION_FOOTPRINTS / surfels;
+        assert_eq!(*capped, Some(SegmentCap::Footprints(share)));
+        assert_eq!(segments.len(), share);
+        assert!(plan.explain(None).contains("motion footprints"));
+    }
+
+    #[test]
     fn motion_along_the_view_ray_grows_the_image_about_a_fixed_centre() {
         // A 1×1 square on the view axis flies from distance 10 to 5: its image doubles in width.
         let camera = camera(96, 96);
@@ -444,7 +472,10 @@ mod stiff {
                 panic!("the splat moves");
             };
             // The plan's cap bounds the work however fast the motion.
-            assert!(*capped && segments.len() == MAX_SEGMENTS_PER_INTERVAL);
+            assert!(
+                *capped == Some(SegmentCap::PerInterval)
+                    && segments.len() == MAX_SEGMENTS_PER_INTERVAL
+            );
             // At uniform speed the splat spends width/travel of the exposure over the image.
             let path_share = f64::from(width) / travel_px;
             // The reference is SAMPLES sharp copies at the strata's midpoints: the image holds the
@@ -720,7 +751,10 @@ mod stiff {
             else {
                 panic!("the square moves");
             };
-            assert!(*capped && segments.len() == MAX_SEGMENTS_PER_INTERVAL);
+            assert!(
+                *capped == Some(SegmentCap::PerInterval)
+                    && segments.len() == MAX_SEGMENTS_PER_INTERVAL
+            );
             // The image centre is covered whenever the square is in front. 2/512: the stratum
             // holding the crossing, and the pixel's soft coverage at the square's huge splats.
             let average = converged(&scene);
