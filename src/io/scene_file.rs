@@ -356,13 +356,18 @@ impl Scene {
     /// counted against it before they are made.
     pub fn load_within(path: &Path, budget: Budget) -> Result<Scene> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        validate(parse_toml(&text, path)?, path, budget)
+        Scene::parse_within(&text, path, budget)
     }
 
     /// Validate scene text, within the default surfel budget; `path` names the file in messages
     /// and anchors relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Scene> {
-        validate(parse_toml(text, path)?, path, Budget::default())
+        Scene::parse_within(text, path, Budget::default())
+    }
+
+    /// [`Scene::parse`] within a surfel budget for the whole scene.
+    pub fn parse_within(text: &str, path: &Path, budget: Budget) -> Result<Scene> {
+        validate(parse_toml(text, path)?, path, budget)
     }
 
     /// The style the scene names (`style = "…"`), read; `None` when it names none. A file that
