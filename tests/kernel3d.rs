@@ -132,3 +132,29 @@ fn exact_visibility_shows_the_background_between_two_brief_passes() {
     let finer = centre(&kernel3d(&scene, Some(8), Visibility::Approximate));
     assert!((finer[0] - reference[0]).abs() < 0.01, "{finer:?}");
 }
+
+#[test]
+fn a_jump_between_nearly_coincident_keyframes_draws_two_objects_and_no_smear() {
+    // A square at x = −1 until mid-exposure and at x = +1 from the very next representable
+    // instant: a teleport. The reference draws each half as bright; so must the kernels, with
+    // nothing between them (a kernel across the jump once smeared it over the gap).
+    let camera = camera(96, 48);
+    let half = 0.5f64;
+    let teleport = motion(&[
+        (0.0, pose(DVec3::new(-1.0, 0.0, 0.0), 0.0)),
+        (half, pose(DVec3::new(-1.0, 0.0, 0.0), 0.0)),
+        (half.next_up(), pose(DVec3::new(1.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(1.0, 0.0, 0.0), 0.0)),
+    ]);
+    let square = patch(DVec3::ZERO, [0.8, 0.8], 0.04, false);
+    let scene = scene(camera.clone(), vec![object(square, teleport)]);
+    let reference = draw(&scene, &Method::Reference { samples: 64 });
+    let kernels = kernel3d(&scene, None, Visibility::Exact);
+    let error = rmse(&kernels, &reference);
+    assert!(error < 0.01, "RMSE {error} against the reference");
+    // The middle column, half way between the squares (about 40 px apart), stays dark.
+    let middle = (0..48)
+        .map(|y| f64::from(kernels.pixels[y * 96 + 48][0]))
+        .fold(0.0, f64::max);
+    assert!(middle < 1e-3, "the gap holds {middle}");
+}

@@ -37,6 +37,11 @@ pub enum Visibility {
     Approximate,
 }
 
+/// Sub-frames shorter than this share of the exposure get no kernels: they hold none of its
+/// weight that an 8-bit image could show, and a kernel across a jump between two nearly
+/// coincident keyframes would draw the jump as a smear.
+const SHORTEST_SUBFRAME: f64 = 1e-12;
+
 /// Most kernels held at once (about 250 bytes each, so about 500 MB). Sub-frames are rendered in
 /// passes of as many as fit.
 pub const MAX_KERNELS_PER_PASS: usize = 1 << 21;
@@ -167,6 +172,13 @@ pub(super) fn render(
             if object_plan.motion != ObjectMotion::Still {
                 for k in first..last {
                     let span = [times[k], times[k + 1]];
+                    // A sub-frame too short to hold any of the exposure is where keyframes
+                    // nearly coincide (a jump): a kernel across it would smear the jump.
+                    if !(span[1] - span[0]
+                        > SHORTEST_SUBFRAME * (times[times.len() - 1] - times[0]))
+                    {
+                        continue;
+                    }
                     kernels.extend(kernels_over(
                         scene,
                         object,
@@ -265,7 +277,9 @@ fn subframe_times(scene: &Scene, plan: &Plan, subframes: Subframes) -> (Vec<f64>
         }
     };
     times.sort_by(f64::total_cmp);
-    times.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * (close - open));
+    // Keyframes closer together than a sub-frame can hold stay apart: the sub-frame between them
+    // is skipped, and its neighbours end and start at the poses either side of the jump.
+    times.dedup();
     let planned = times.len() - 1;
     if planned > MAX_SUBFRAMES {
         return (equal(MAX_SUBFRAMES), Some(planned));
