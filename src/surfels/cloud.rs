@@ -51,8 +51,11 @@ pub fn check_neighbours(neighbours: usize) -> Result<usize> {
 }
 
 /// Surfels from a point cloud: one isotropic surfel per distinct position, with the cloud's
-/// normals, radii and colours where it has them (else [`DEFAULT_GREY`]), and normals, covering
-/// radii and areas estimated from `neighbours` nearest neighbours where it does not.
+/// normals and colours where it has them (else [`DEFAULT_GREY`]) and the area each point stands
+/// for estimated from its `neighbours` nearest neighbours (its coverage). A radius r in the cloud
+/// is the splat's own: the Gaussian's standard deviation is r/2, so that its 2σ disc reaches r;
+/// without one, the splat is as wide as its area asks (σ = [`super::SIGMA_PER_SPACING`]·√area) and at
+/// least covers the gaps to its neighbours (σ ≥ covering radius / 2).
 ///
 /// Points at exactly the same position are one point (the first of them): a stack of them would
 /// only draw one disc several times over, and would make the neighbour search quadratic. Errors
@@ -102,9 +105,20 @@ pub fn from_point_cloud(cloud: &PointCloud, neighbours: usize) -> Result<Vec<Sur
         .iter()
         .enumerate()
         .map(|(j, &i)| {
-            let radius = cloud.radii.as_ref().map_or(cover_radii[j], |r| r[i]);
             let colour = cloud.colors.as_ref().map_or(DEFAULT_GREY, |c| c[i]);
-            Surfel::isotropic(positions[j], normals[j], areas[j], Some(radius), colour)
+            match &cloud.radii {
+                // A radius given is the splat's: its Gaussian reaches it at 2σ.
+                Some(radii) => {
+                    Surfel::disc(positions[j], normals[j], areas[j], 0.5 * radii[i], colour)
+                }
+                None => Surfel::isotropic(
+                    positions[j],
+                    normals[j],
+                    areas[j],
+                    Some(cover_radii[j]),
+                    colour,
+                ),
+            }
         })
         .collect())
 }
@@ -966,5 +980,28 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(message.contains("99999 at one position"), "{message}");
+    }
+
+    #[test]
+    fn a_radius_in_the_cloud_is_the_splat_s() {
+        // A 10 × 10 grid 0.01 apart: without radii the splats are as wide as their cells ask
+        // (σ = 0.6 × 0.01); with radii r they have σ = r/2, and the areas stay the cells'.
+        let grid: Vec<DVec3> = (0..100)
+            .map(|i| DVec3::new(f64::from(i % 10), f64::from(i / 10), 0.0) * 0.01)
+            .collect();
+        let mut cloud = bare(grid);
+        cloud.normals = Some(vec![DVec3::Z; 100]);
+        let estimated = from_point_cloud(&cloud, 12).unwrap();
+        for radius in [0.001, 0.0055, 0.03] {
+            cloud.radii = Some(vec![radius; 100]);
+            let given = from_point_cloud(&cloud, 12).unwrap();
+            for (g, e) in given.iter().zip(&estimated) {
+                assert!((g.axis_u.length() - radius / 2.0).abs() < 1e-15);
+                assert!((g.axis_v.length() - radius / 2.0).abs() < 1e-15);
+                assert_eq!(g.area, e.area);
+            }
+        }
+        let inner = &estimated[55];
+        assert!((inner.axis_u.length() - 0.006).abs() < 1e-9, "{inner:?}");
     }
 }

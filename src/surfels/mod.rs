@@ -59,6 +59,12 @@ impl Surfel {
         colour: [f32; 3],
     ) -> Self {
         let sigma = (SIGMA_PER_SPACING * area.sqrt()).max(0.5 * cover_radius.unwrap_or(0.0));
+        Surfel::disc(position, normal, area, sigma, colour)
+    }
+
+    /// A round surfel whose Gaussian has standard deviation `sigma`, standing for `area`.
+    #[must_use]
+    pub fn disc(position: DVec3, normal: DVec3, area: f64, sigma: f64, colour: [f32; 3]) -> Self {
         let (u, v) = normal.any_orthonormal_pair();
         Surfel {
             position,
