@@ -260,14 +260,22 @@ fn streak_depth_gradient(plane: DVec2, chord: DVec2, depth_change: f64, splat: S
     plane + along * ((depth_change / length - plane.dot(along)) * f)
 }
 
-/// Share of a sub-segment during which a surfel faces the camera, taking its facing cosine to
-/// change linearly between the ends.
-fn front_facing_share(a: f64, b: f64) -> f64 {
-    match (a > 0.0, b > 0.0) {
-        (true, true) => 1.0,
-        (false, false) => 0.0,
-        (true, false) => a / (a - b),
-        (false, true) => b / (b - a),
+/// The splat a share `s` of the way from `a` to `b`: every quantity interpolated linearly.
+fn between(a: &ScreenSplat, b: &ScreenSplat, s: f64) -> ScreenSplat {
+    let lerp = |x: f64, y: f64| x + (y - x) * s;
+    ScreenSplat {
+        center: a.center.lerp(b.center, s),
+        covariance: Sym2 {
+            xx: lerp(a.covariance.xx, b.covariance.xx),
+            xy: lerp(a.covariance.xy, b.covariance.xy),
+            yy: lerp(a.covariance.yy, b.covariance.yy),
+        },
+        weight: lerp(a.weight, b.weight),
+        colour: [0, 1, 2].map(|c| lerp(f64::from(a.colour[c]), f64::from(b.colour[c])) as f32),
+        depth: lerp(a.depth, b.depth),
+        depth_gradient: a.depth_gradient.lerp(b.depth_gradient, s),
+        depth_tolerance: lerp(a.depth_tolerance, b.depth_tolerance),
+        ..*a
     }
 }
 
@@ -282,11 +290,32 @@ pub(crate) fn motion_ellipse(
     moments: &TimeMoments,
     chained: bool,
 ) -> Result<ScreenSplat, Cull> {
-    let facing = front_facing_share(a.facing, b.facing);
-    if !(facing > 0.0) {
-        return Err(Cull::BackFacing);
+    // A surfel turning edge-on within the sub-segment shows its face only until (or from) the
+    // turn, its facing cosine taken as linear in time: the ellipse is clipped to that part, and
+    // at the turn its projected area is zero. (Weighting the whole sub-segment by the share of
+    // time it faces counted the far end's area as if it faced the camera: twice the energy.)
+    let (mut a_splat, mut b_splat, mut span, mut moments) = (a.splat, b.splat, [t0, t1], *moments);
+    match (a.facing > 0.0, b.facing > 0.0) {
+        (true, true) => {}
+        (false, false) => return Err(Cull::BackFacing),
+        (a_faces, _) => {
+            let turn_at = a.facing / (a.facing - b.facing);
+            let mut turn = between(&a.splat, &b.splat, turn_at);
+            turn.weight = 0.0;
+            let t_turn = t0 + (t1 - t0) * turn_at;
+            if a_faces {
+                (b_splat, span) = (turn, [t0, t_turn]);
+            } else {
+                (a_splat, span) = (turn, [t_turn, t1]);
+            }
+            moments = shutter.moments(span[0], span[1]);
+            if !(span[1] > span[0] && moments.mass > 0.0) {
+                return Err(Cull::BackFacing);
+            }
+        }
     }
-    let (a, b) = (&a.splat, &b.splat);
+    let ([t0, t1], moments) = (span, &moments);
+    let (a, b) = (&a_splat, &b_splat);
     let s = ((moments.mean - t0) / (t1 - t0)).clamp(0.0, 1.0);
     let lerp = |x: f64, y: f64| x + (y - x) * s;
     let chord = b.center - a.center;
@@ -333,7 +362,7 @@ pub(crate) fn motion_ellipse(
     Ok(ScreenSplat {
         center: a.center + chord * s,
         covariance: splat + Sym2::outer(chord).scaled(motion_variance),
-        weight: lerp(a.weight, b.weight) * moments.mass * facing,
+        weight: lerp(a.weight, b.weight) * moments.mass,
         colour: [0, 1, 2].map(|c| lerp(f64::from(a.colour[c]), f64::from(b.colour[c])) as f32),
         depth: lerp(a.depth, b.depth),
         depth_gradient: streak_depth_gradient(
