@@ -311,19 +311,45 @@ fn kernels_over(
             if !(-p0.z >= camera.near || -p1.z >= camera.near) {
                 return Err(Cull::BehindNear);
             }
-            // Culled when it faces away at both ends, as blur does (and Heinzle §5.2).
-            let facing =
-                |instant: &Instant, p: DVec3| instant.view_vector(surfel.normal).dot(p) < 0.0;
-            if !(facing(start, p0) || facing(end, p1)) {
-                return Err(Cull::BackFacing);
-            }
-            let axes = [surfel.axis_u, surfel.axis_v].map(|a| middle.view_vector(a));
-            let colour = scene
-                .lighting
-                .shade(surfel.colour, middle.world_normal(surfel.normal));
+            // Facing cosines at the ends, positive towards the camera.
+            let cosine = |instant: &Instant, p: DVec3| {
+                let n = instant.view_vector(surfel.normal);
+                -n.dot(p) / (n.length() * p.length())
+            };
+            let (c0, c1) = (cosine(start, p0), cosine(end, p1));
             let density = surfel.area / surfel.axis_u.cross(surfel.axis_v).length();
-            Kernel::new(camera, p0, p1, axes, density, colour, window)
-                .ok_or(Cull::Raster(Rejection::Degenerate))
+            let kernel = |[p0, p1]: [DVec3; 2], middle: &Instant, window: [f64; 2]| {
+                let axes = [surfel.axis_u, surfel.axis_v].map(|a| middle.view_vector(a));
+                let colour = scene
+                    .lighting
+                    .shade(surfel.colour, middle.world_normal(surfel.normal));
+                Kernel::new(camera, p0, p1, axes, density, colour, window)
+                    .ok_or(Cull::Raster(Rejection::Degenerate))
+            };
+            match (c0 > 0.0, c1 > 0.0) {
+                (true, true) => kernel([p0, p1], middle, window),
+                // Culled when it faces away at both ends, as blur does (and Heinzle §5.2).
+                (false, false) => Err(Cull::BackFacing),
+                // Turning edge-on within the sub-frame (its cosine taken as linear in time): the
+                // kernel spans the part that faces the camera, as blur's ellipse does. Spanning
+                // the whole sub-frame, its splat axes were those of the middle, where it may be
+                // seen exactly edge-on, with no area at all.
+                (first_half, _) => {
+                    let turn = t0 + (t1 - t0) * c0 / (c0 - c1);
+                    let turn_mass = window[0] + scene.shutter.moments(t0, turn).mass;
+                    let (span, window) = if first_half {
+                        ([t0, turn], [window[0], turn_mass])
+                    } else {
+                        ([turn, t1], [turn_mass, window[1]])
+                    };
+                    if !(span[1] > span[0] && window[1] > window[0]) {
+                        return Err(Cull::BackFacing);
+                    }
+                    let at = |t: f64| Instant::new(camera, &object.motion.pose_at(t));
+                    let ends = span.map(|t| at(t).view_point(surfel.position));
+                    kernel(ends, &at(0.5 * (span[0] + span[1])), window)
+                }
+            }
         })
         .collect();
     for result in results {
