@@ -42,6 +42,10 @@ pub enum Visibility {
 /// coincident keyframes would draw the jump as a smear.
 const SHORTEST_SUBFRAME: f64 = 1e-12;
 
+/// Most depth-buffer pixels the GPU approximation holds at once (256 MiB of f32): its sub-frames
+/// are rendered in passes of as many as fit.
+const MAX_DEPTH_BUFFER_PIXELS: usize = 1 << 26;
+
 /// Most kernels held at once (about 250 bytes each, so about 500 MB). Sub-frames are rendered in
 /// passes of as many as fit.
 pub const MAX_KERNELS_PER_PASS: usize = 1 << 21;
@@ -139,20 +143,19 @@ pub(super) fn render(
             moving_surfels += object.surfels().len();
         }
     }
-    // §5.1's depth buffers, one per sub-frame end (shared by the sub-frames that meet there).
-    let visible_depth: Option<Vec<Vec<f32>>> = (visibility == Visibility::Approximate).then(|| {
-        times
-            .iter()
-            .map(|&t| instant_layer(scene, t, &mut Stats::default()).front_depth)
-            .collect()
-    });
-
-    // Passes of consecutive sub-frames, as many as keep the kernels within MAX_KERNELS_PER_PASS.
+    // Passes of consecutive sub-frames, as many as keep the kernels within MAX_KERNELS_PER_PASS
+    // (and, for the GPU approximation, its depth buffers within MAX_DEPTH_BUFFER_PIXELS).
     // Fragments of different passes cover disjoint parts of the exposure, so resolving each pass
     // over its own part and adding them up is exact.
+    let pixel_count = width as usize * height as usize;
+    let depth_buffers = match visibility {
+        Visibility::Exact => usize::MAX,
+        Visibility::Approximate => (MAX_DEPTH_BUFFER_PIXELS / pixel_count).saturating_sub(1),
+    };
     let per_pass = (MAX_KERNELS_PER_PASS.saturating_sub(still_kernels.len()))
         .checked_div(moving_surfels)
         .unwrap_or(windows.len())
+        .min(depth_buffers)
         .clamp(1, windows.len());
     let passes = windows.len().div_ceil(per_pass);
     let still_off_screen = if passes > 1 {
@@ -200,7 +203,15 @@ pub(super) fn render(
         stats.culled.off_screen += culled.off_screen - repeated_off_screen;
         kernel3d.kernels += (kernels.len() - repeated) - (culled.off_screen - repeated_off_screen);
         let span = [windows[first][0], windows[last - 1][1]];
-        let depths = visible_depth.as_deref().map(|d| &d[first..=last]);
+        // §5.1's depth buffers, one per sub-frame end of the pass (shared by the sub-frames that
+        // meet there).
+        let visible_depth: Option<Vec<Vec<f32>>> =
+            (visibility == Visibility::Approximate).then(|| {
+                times[first..=last]
+                    .iter()
+                    .map(|&t| instant_layer(scene, t, &mut Stats::default()).front_depth)
+                    .collect()
+            });
         let results: Vec<TileResult> = (0..grid.count())
             .into_par_iter()
             .map(|tile| {
@@ -215,7 +226,7 @@ pub(super) fn render(
                     grid.pixels(tile),
                     span,
                     &windows[first..last],
-                    depths,
+                    visible_depth.as_deref(),
                 )
             })
             .collect();
