@@ -302,14 +302,11 @@ fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
     })
 }
 
-fn method_name(name: MethodName) -> &'static str {
-    match name {
-        MethodName::Static => "static",
-        MethodName::Blur => "blur",
-        MethodName::Reference => "reference",
-        MethodName::Hint => "hint",
-        MethodName::Kernel3d => "kernel3d",
-    }
+/// The name the command line gives `name` (its clap value).
+fn method_name(name: MethodName) -> String {
+    clap::ValueEnum::to_possible_value(&name)
+        .map(|value| value.get_name().to_string())
+        .unwrap_or_default()
 }
 
 /// A setting's error in the command line's words: the setting `width/height` is the options

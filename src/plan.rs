@@ -103,11 +103,17 @@ impl<'a> Plan<'a> {
         method.check()?;
         let tolerance_px = method.tolerance_px();
         let (open, close) = (scene.shutter.open, scene.shutter.close);
+        let moving: Vec<bool> = scene
+            .objects
+            .iter()
+            .map(|o| o.motion.moves_within(open, close))
+            .collect();
         let moving_surfels: usize = scene
             .objects
             .iter()
-            .filter(|o| o.motion.moves_within(open, close))
-            .map(|o| o.surfels().len())
+            .zip(&moving)
+            .filter(|(_, &moves)| moves)
+            .map(|(o, _)| o.surfels().len())
             .sum();
         let max_segments = MAX_MOTION_FOOTPRINTS
             .checked_div(moving_surfels)
@@ -116,10 +122,11 @@ impl<'a> Plan<'a> {
         let objects = scene
             .objects
             .iter()
-            .map(|object| ObjectPlan {
+            .zip(&moving)
+            .map(|(object, &moves)| ObjectPlan {
                 name: object.name.clone(),
                 surfels: object.surfels().len(),
-                motion: if object.motion.moves_within(open, close) {
+                motion: if moves {
                     plan_motion(
                         &scene.camera,
                         object,

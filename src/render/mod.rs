@@ -286,6 +286,7 @@ pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render 
             visibility,
         } => kernel3d::render(scene, plan, *subframes, *visibility),
     };
+    // The reference tells each of its frames itself; the others are one frame.
     if let (Some(progress), false) = (progress, matches!(plan.method(), Method::Reference { .. })) {
         progress();
     }

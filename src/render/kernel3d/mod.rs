@@ -166,8 +166,9 @@ pub(super) fn render(
     } else {
         0
     };
+    let shortest = SHORTEST_SUBFRAME * (scene.shutter.close - scene.shutter.open);
     let grid = TileGrid::new(width, height);
-    let mut sums = vec![Resolved::default(); width as usize * height as usize];
+    let mut sums = vec![Resolved::default(); pixel_count];
     for (pass, first) in (0..windows.len()).step_by(per_pass).enumerate() {
         let last = (first + per_pass).min(windows.len());
         let mut kernels = still_kernels.clone();
@@ -177,9 +178,7 @@ pub(super) fn render(
                     let span = [times[k], times[k + 1]];
                     // A sub-frame too short to hold any of the exposure is where keyframes
                     // nearly coincide (a jump): a kernel across it would smear the jump.
-                    if !(span[1] - span[0]
-                        > SHORTEST_SUBFRAME * (times[times.len() - 1] - times[0]))
-                    {
+                    if !(span[1] - span[0] > shortest) {
                         continue;
                     }
                     kernels.extend(kernels_over(
@@ -276,7 +275,7 @@ fn subframe_times(scene: &Scene, plan: &Plan, subframes: Subframes) -> (Vec<f64>
             .collect()
     };
     let mut times = match subframes {
-        Subframes::Equal(n) => equal(n.max(1)),
+        Subframes::Equal(n) => equal(n),
         Subframes::Planned { .. } => {
             let mut times = vec![open, close];
             for object in &plan.objects {
