@@ -13,6 +13,7 @@
 //! departures from the paper: docs/math.md, "A-buffer visibility".
 
 use super::kernel3d::integral::Primitive;
+use crate::raster::opacity;
 
 /// What a primitive leaves on one pixel ray: the part of the exposure it covers the ray and how
 /// much.
@@ -196,7 +197,7 @@ fn composite(
     if !(weight > 0.0) {
         return 1.0;
     }
-    let alpha = (weight / length).min(1.0);
+    let alpha = opacity(weight / length);
     let k = transmittance * alpha * length / weight;
     for (o, c) in out.colour.iter_mut().zip(colour) {
         *o += k * c;
@@ -236,17 +237,23 @@ fn one_surface(fragments: &[Fragment]) -> bool {
     fragments.is_empty() || far - near <= tolerance
 }
 
-/// The end of the surface that starts at `active[start]`: every following fragment within the
-/// depth tolerance of that nearest one (the ternary depth test).
+/// The end of the surface that starts at `active[start]`: each following fragment within the
+/// depth tolerance of the deepest one before it (the ternary depth test, chained, as the
+/// compositor of footprints does: raster/composite.rs).
 fn same_surface_end(active: &[(f64, usize)], start: usize, fragments: &[Fragment]) -> usize {
     let Some(&(front, first)) = active.get(start) else {
         return start;
     };
-    let tolerance = fragments[first].tolerance;
+    let (mut deepest, mut tolerance) = (front, fragments[first].tolerance);
     let mut end = start;
-    while end < active.len()
-        && active[end].0 - front <= tolerance.max(fragments[active[end].1].tolerance)
-    {
+    while let Some(&(depth, i)) = active.get(end) {
+        let own = fragments[i].tolerance;
+        if depth - deepest > tolerance.max(own) {
+            break;
+        }
+        if depth > deepest && depth - deepest <= tolerance.min(own) {
+            (deepest, tolerance) = (depth, own);
+        }
         end += 1;
     }
     end
@@ -389,7 +396,7 @@ pub(crate) fn resolve_approximate(
             background: length,
         };
     }
-    let covered = (last - first) * (weight / active).min(1.0);
+    let covered = (last - first) * opacity(weight / active);
     Resolved {
         colour: colour.map(|c| c * covered / weight),
         background: length - covered,

@@ -18,7 +18,10 @@ mod reference;
 mod still;
 
 pub use crate::project::Culled;
-pub use crate::raster::{CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN};
+pub use crate::raster::{
+    opacity, CUTOFF_SIGMAS, OPACITY_KNEE, OPAQUE_COVERAGE, PREFILTER_VARIANCE_PX2, TILE_PX,
+    TRUNCATION_GAIN,
+};
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS};
 pub use reference::ReferenceStats;

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 use glam::{DQuat, DVec3};
+use std::collections::HashMap;
 use streak::scene::Camera;
 use streak::scene::{Keyframe, Motion, Pose};
 use streak::scene::{Object, Scene};
@@ -168,18 +169,21 @@ pub const UNIT_SPHERE_VIEW: &str = r#"
     height = 160
 "#;
 
-/// Render a white unit sphere seen through [`UNIT_SPHERE_VIEW`] sharp and return the least
+/// Least coverage inside a dense closed surface: nothing of what lies behind visible in 8 bits.
+pub const OPAQUE: f32 = 0.999;
+
+/// Render a white unit sphere seen through [`UNIT_SPHERE_VIEW`] with `method` and return the least
 /// coverage of any pixel centre more than 2 px inside its silhouette (radius f·tan(asin(1/4))),
 /// asserting that nothing shows more than 3 px outside it. White on black makes coverage the value.
-pub fn least_coverage_inside_unit_sphere(scene: &Scene) -> f32 {
-    let image = sharp(scene, 0.0);
+pub fn least_coverage_inside_unit_sphere(scene: &Scene, method: &Method) -> f32 {
+    let image = draw(scene, method);
     let f = scene.camera.focal_px;
     let radius_px = f * (1.0f64 / 4.0).asin().tan();
     let (mut inside, mut worst) = (0, 1.0f32);
     for y in 0..160u32 {
         for x in 0..160u32 {
             let d = ((x as f64 + 0.5 - 80.0).powi(2) + (y as f64 + 0.5 - 80.0).powi(2)).sqrt();
-            let value = image.image.pixels[(y * 160 + x) as usize][0];
+            let value = image.pixels[(y * 160 + x) as usize][0];
             if d < radius_px - 2.0 {
                 inside += 1;
                 worst = worst.min(value);
@@ -193,6 +197,106 @@ pub fn least_coverage_inside_unit_sphere(scene: &Scene) -> f32 {
     }
     assert!(inside > 10_000);
     worst
+}
+
+/// A unit icosphere: the icosahedron with each triangle cut into four `subdivisions` times, new
+/// vertices pushed out to the sphere; triangles wound counter-clockwise seen from outside.
+pub fn icosphere(subdivisions: usize) -> (Vec<DVec3>, Vec<[usize; 3]>) {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut positions: Vec<DVec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|&p| DVec3::from_array(p).normalize())
+    .collect();
+    let mut triangles = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut midpoints = HashMap::new();
+        let mut midpoint = |a: usize, b: usize, positions: &mut Vec<DVec3>| {
+            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                positions.push((positions[a] + positions[b]).normalize());
+                positions.len() - 1
+            })
+        };
+        triangles = triangles
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let ab = midpoint(a, b, &mut positions);
+                let bc = midpoint(b, c, &mut positions);
+                let ca = midpoint(c, a, &mut positions);
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    (positions, triangles)
+}
+
+/// `count` points on the unit sphere along a Fibonacci spiral.
+pub fn fibonacci_sphere(count: usize) -> Vec<DVec3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..count)
+        .map(|i| {
+            let z = 1.0 - (2.0 * i as f64 + 1.0) / count as f64;
+            let r = (1.0 - z * z).sqrt();
+            let phi = golden * i as f64;
+            DVec3::new(r * phi.cos(), z, r * phi.sin())
+        })
+        .collect()
+}
+
+/// Voxels along each axis, and the sphere's radius in voxels.
+pub const BALL_SIDE: usize = 48;
+pub const BALL_RADIUS: f64 = 18.0;
+
+/// A uint8 volume of a ball: 8 grey levels per voxel of distance from the sphere, 100 on it.
+pub fn ball_volume() -> Vec<u8> {
+    let centre = (BALL_SIDE - 1) as f64 / 2.0;
+    let mut bytes = Vec::with_capacity(BALL_SIDE * BALL_SIDE * BALL_SIDE);
+    for z in 0..BALL_SIDE {
+        for y in 0..BALL_SIDE {
+            for x in 0..BALL_SIDE {
+                let d = [x, y, z]
+                    .map(|i| (i as f64 - centre).powi(2))
+                    .iter()
+                    .sum::<f64>()
+                    .sqrt();
+                bytes.push((100.0 + 8.0 * (BALL_RADIUS - d)).round().clamp(0.0, 255.0) as u8);
+            }
+        }
+    }
+    bytes
 }
 
 /// Screen standard deviation of the test splat, px.
