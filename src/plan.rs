@@ -19,13 +19,16 @@ use glam::DVec2;
 /// along the motion convolved with the splat) at its ends, so shorter segments converge to it.
 pub const SEGMENT_LENGTH_PER_TOLERANCE: f64 = 32.0;
 
-/// A sub-segment may change a probe's depth by at most this factor. A footprint's weight (its
-/// screen area, ∝ 1/depth²) is interpolated linearly between the sub-segment's ends, where the
-/// exposure's mean of 1/d² for a depth moving linearly from d0 to d1 is 1/(d0·d1): linear
-/// interpolation overstates it by (r − 1)²/2r for r = d1/d0, 0.45 % at 1.1 (25 % at 2, which an
-/// object flying to half its distance in one straight sub-segment showed as excess light once
-/// the compositor stopped clipping it).
-pub const MAX_DEPTH_RATIO: f64 = 1.1;
+/// Largest departure of a probe's screen weight from the straight line between a sub-segment's
+/// ends, in units of the weight it would have facing the eye there. A footprint's weight (its
+/// screen area, A·f²·n·(e − p)/z³ for a surfel at p, z deep, seen from the eye e) is interpolated
+/// linearly between the ends, and a surfel turning edge-on is clipped where that line crosses
+/// zero. Two motions bend it where the screen path stays straight: turning about an axis across
+/// the view (a square turning 150° got one sub-segment, and `blur` drew 64 % of its light; a turn
+/// by Δ departs by up to Δ²/8, so 1 % holds turns of about 16°), and moving in depth (area ∝ 1/z²:
+/// a square flying to half its distance in one sub-segment drew 12 % too much light; 1 % holds
+/// a depth ratio of about 1.13).
+pub const MAX_WEIGHT_DEVIATION: f64 = 0.01;
 
 /// Range of the sub-segment tolerance, px. Below it sub-segments only cost time; above it a
 /// single motion ellipse may span the image many times over, and its tile lists with it.
@@ -236,17 +239,36 @@ impl<'a> Plan<'a> {
 
 /// Screen position of a probe point at time t, if in front of the camera.
 fn screen_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<DVec2> {
-    projected_at(camera, object, probe, t).map(|(px, _)| px)
-}
-
-/// Screen position and depth of a probe point at time t, if in front of the camera.
-fn projected_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<(DVec2, f64)> {
     let p = object
         .motion
         .pose_at(t)
         .to_affine()
         .transform_point3(object.surfels()[probe].position);
-    camera.project(camera.view.transform_point3(p))
+    camera
+        .project(camera.view.transform_point3(p))
+        .map(|(px, _)| px)
+}
+
+/// A probe's screen weight per unit of area and focal length² at time t, n·(e − p)/z³, and the
+/// same facing the eye, |e − p|/z³ (view space, where the eye e is the origin).
+fn weight_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> (f64, f64) {
+    let pose = object.motion.pose_at(t).to_affine();
+    let surfel = &object.surfels()[probe];
+    let p_view = camera
+        .view
+        .transform_point3(pose.transform_point3(surfel.position));
+    let n_view = camera
+        .view
+        .transform_vector3(pose.transform_vector3(surfel.normal))
+        .normalize_or_zero();
+    let depth_cubed = (-p_view.z).powi(3);
+    if !(depth_cubed > 0.0) {
+        return (0.0, 0.0);
+    }
+    (
+        n_view.dot(-p_view) / depth_cubed,
+        p_view.length() / depth_cubed,
+    )
 }
 
 /// [t0, t1] cut into `k` equal pieces.
@@ -274,21 +296,22 @@ struct Fit {
     deviation: f64,
     /// Longest chord, px.
     longest: f64,
-    /// Largest |ln(d1/d0)| of a probe's depth over a piece.
-    depth_log: f64,
+    /// Largest departure of a probe's screen weight from its chord over a piece (see
+    /// [`MAX_WEIGHT_DEVIATION`]).
+    weight: f64,
 }
 
 /// Worst chord deviation, longest chord and largest depth change over probes for `k` equal pieces
 /// of [t0, t1].
 fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
-    let (mut deviation, mut longest, mut depth_log) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut deviation, mut longest, mut weight) = (0.0f64, 0.0f64, 0.0f64);
     for [a, b] in pieces(t0, t1, k) {
         for &probe in probes {
             let (pa, pb) = (
-                projected_at(camera, object, probe, a),
-                projected_at(camera, object, probe, b),
+                screen_at(camera, object, probe, a),
+                screen_at(camera, object, probe, b),
             );
-            let (Some((pa, da)), Some((pb, db))) = (pa, pb) else {
+            let (Some(pa), Some(pb)) = (pa, pb) else {
                 // A path that crosses the near plane runs off to infinity on screen: no chord
                 // stands for it, and the renderers drop the piece, so it must be cut finer.
                 if pa.is_some() != pb.is_some() {
@@ -297,20 +320,29 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
                 continue;
             };
             longest = longest.max(pa.distance(pb));
-            depth_log = depth_log.max((db / da).ln().abs());
+            let (wa, wb) = (
+                weight_at(camera, object, probe, a).0,
+                weight_at(camera, object, probe, b).0,
+            );
             for s in 1..DEVIATION_SAMPLES {
-                let t = a + (b - a) * s as f64 / DEVIATION_SAMPLES as f64;
+                let share = s as f64 / DEVIATION_SAMPLES as f64;
+                let t = a + (b - a) * share;
                 deviation = match screen_at(camera, object, probe, t) {
                     Some(p) => deviation.max(distance_to_segment(p, pa, pb)),
                     None => f64::INFINITY,
                 };
+                let (w, facing_weight) = weight_at(camera, object, probe, t);
+                let chord = wa + (wb - wa) * share;
+                if facing_weight > 0.0 {
+                    weight = weight.max((w - chord).abs() / facing_weight);
+                }
             }
         }
     }
     Fit {
         deviation,
         longest,
-        depth_log,
+        weight,
     }
 }
 
@@ -340,22 +372,22 @@ fn plan_motion(
         let fit = loop {
             let fit = measure(camera, object, &probes, t0, t1, k);
             let max_length = SEGMENT_LENGTH_PER_TOLERANCE * tolerance_px;
-            let max_depth_log = MAX_DEPTH_RATIO.ln();
             let holds = fit.deviation <= tolerance_px
                 && fit.longest <= max_length
-                && fit.depth_log <= max_depth_log;
+                && fit.weight <= MAX_WEIGHT_DEVIATION;
             if holds || k >= MAX_SEGMENTS_PER_INTERVAL {
                 if !holds {
                     capped = Some(SegmentCap::PerInterval);
                 }
                 break fit;
             }
-            // Chord deviation of a smooth path falls as 1/k², chord length and depth change as
-            // 1/k: jump to the count all three predict, and at least one more.
+            // Chord deviations (of the screen path and of the weight) of a smooth motion fall as
+            // 1/k², chord length as 1/k: jump to the count all three predict, and at least one
+            // more.
             let factor = (fit.deviation / tolerance_px)
                 .sqrt()
-                .max(fit.longest / max_length)
-                .max(fit.depth_log / max_depth_log);
+                .max((fit.weight / MAX_WEIGHT_DEVIATION).sqrt())
+                .max(fit.longest / max_length);
             let next = (k as f64 * factor).ceil();
             k = if next.is_finite() {
                 (next as usize).max(k + 1)

@@ -22,6 +22,7 @@ const METHODS: &[Kind] = &[
     Kind::Reference,
     Kind::Hint,
     Kind::Kernel3d,
+    Kind::Kernel3dApproximate,
 ];
 
 /// Frames of the reference in [`METHODS`]: few, as a user in a hurry would ask for. A power of
@@ -457,9 +458,10 @@ mod stiff {
                 area > 1.0 && area < 4.0 * 1.01,
                 "{name}: {area} start areas, not between the start and end sizes"
             );
-            // 1 %: the plan cuts the flight into sub-segments that change depth by at most 10 %,
-            // over which a footprint's area (∝ 1/d²) is taken as linear (blur measured +0.45 %);
-            // the opacity rule widens soft edges a little (reference +0.25 %, kernel3d +0.35 %);
+            // 1 %: the plan cuts the flight where a footprint's area (∝ 1/d²) departs from linear
+            // by more than 1 % (plan::MAX_WEIGHT_DEVIATION; blur measured +0.48 %);
+            // the opacity rule widens soft edges a little (reference +0.25 %, kernel3d +0.35 %,
+            // --approximate +0.27 %);
             // hint's trail shows under the sharp square's soft edge (+0.6 %).
             let want = expected_area(method);
             assert!((area / want - 1.0).abs() < 0.01, "{name}: {area} vs {want}");
@@ -570,6 +572,61 @@ mod stiff {
                 Surfel::isotropic(position, normal, step * step, None, [1.0; 3])
             })
             .collect()
+    }
+
+    #[test]
+    fn a_surface_turning_to_face_the_camera_draws_only_while_it_faces_it() {
+        // A 2×2 square turns about y from 150° (its back to the camera) to facing it: it turns
+        // edge-on at t = 0.4, inside a sub-segment, and covers cos θ of its area from then on,
+        // 1/(150° in rad) = 0.382 of it on average over the exposure.
+        let camera = camera(64, 64);
+        let turn = motion(&[
+            (
+                0.0,
+                Pose {
+                    translation: DVec3::ZERO,
+                    rotation: DQuat::from_rotation_y(150f64.to_radians()),
+                    scale: 1.0,
+                },
+            ),
+            (1.0, pose(DVec3::ZERO, 0.0)),
+        ]);
+        let scene = scene(camera, vec![object(square(2.0, 0.05, 0.0), turn)]);
+        let average = converged(&scene);
+        let facing = energy(&sharp(&scene, 1.0).image);
+        let mean_share = energy(&average) / facing;
+        // 1 %: perspective (the turning square's near half grows, its far half shrinks).
+        assert!(
+            (mean_share - 1.0 / 150f64.to_radians()).abs() < 0.01,
+            "{mean_share}"
+        );
+        // Its screen paths are straight lines; the plan cuts the turn where the facing cosine
+        // departs from linear (plan::MAX_FACING_DEVIATION).
+        let plan = Plan::new(&scene, &Method::BLUR).unwrap();
+        let ObjectMotion::Moving { segments, .. } = &plan.objects[0].motion else {
+            panic!("the square turns");
+        };
+        assert!(segments.len() >= 10, "{} sub-segments", segments.len());
+        for &method in METHODS {
+            let name = method.name();
+            let image = red(&run(&scene, method).image);
+            let want = expected(method, &scene, &average);
+            let (got, wanted) = (image.iter().sum::<f64>(), want.iter().sum::<f64>());
+            // Measured: energy within 0.6 % (kernel3d --approximate and blur), RMSE ≤ 0.0035,
+            // worst pixel ≤ 0.032 (kernel3d, at the edge that turns edge-on). In one sub-segment,
+            // blur drew 64 % of the light and kernel3d 90 %: each took the facing cosine as
+            // linear over the whole 150°.
+            let (rmse, worst) = (rms_difference(&image, &want), max_difference(&image, &want));
+            assert!(
+                (got / wanted - 1.0).abs() < 0.01,
+                "{name}: energy {}",
+                got / wanted
+            );
+            assert!(
+                rmse < 0.005 && worst < 0.05,
+                "{name}: RMSE {rmse}, worst {worst}"
+            );
+        }
     }
 
     #[test]
@@ -943,7 +1000,19 @@ mod stiff {
             let image = red(&run(&sparse, method).image);
             let most = image.iter().copied().fold(0.0, f64::max);
             assert!(most <= 1.0 + 1e-6, "{name}: coverage {most}");
-            assert!(at(&image, 64, 32, 32) > 0.999, "{name}");
+            let centre = at(&image, 64, 32, 32);
+            if method == Kind::Kernel3dApproximate {
+                // The GPU approximation keeps only fragments at or in front of the visible surface
+                // at the sub-frame's ends, the first that leaves less than half of what lies
+                // behind showing: here the front layer (0.5006 at the centre), so the stack
+                // shows that layer alone (Heinzle §5 assumes opaque surfaces).
+                assert!(
+                    (centre - at(&one, 64, 32, 32)).abs() < 0.01,
+                    "{name}: {centre}"
+                );
+            } else {
+                assert!(centre > 0.999, "{name}: {centre}");
+            }
         }
     }
 

@@ -112,6 +112,8 @@ pub enum Kind {
     Reference,
     Hint,
     Kernel3d,
+    /// `kernel3d --approximate`: the paper's GPU visibility.
+    Kernel3dApproximate,
 }
 
 impl Kind {
@@ -123,11 +125,18 @@ impl Kind {
             Kind::Reference => Method::Reference { samples },
             Kind::Hint => Method::hint(streak::style::Style::default()),
             Kind::Kernel3d => Method::KERNEL3D,
+            Kind::Kernel3dApproximate => Method::Kernel3d {
+                subframes: streak::Subframes::Planned { tolerance_px: 1.0 },
+                visibility: streak::render::Visibility::Approximate,
+            },
         }
     }
 
     pub fn name(self) -> &'static str {
-        self.method(1).name()
+        match self {
+            Kind::Kernel3dApproximate => "kernel3d --approximate",
+            _ => self.method(1).name(),
+        }
     }
 }
 
