@@ -20,7 +20,9 @@ use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{Cull, Culled, Instant};
 use crate::raster::{Rejection, TileGrid, TileLists, TILE_PX};
-use crate::render::abuffer::{resolve_approximate, resolve_exact, Fragment, Resolved};
+use crate::render::abuffer::{
+    resolve_approximate, resolve_exact, Fragment, Resolved, SWEEP_WORK_PER_PIXEL,
+};
 use crate::scene::{Object, Scene};
 use glam::{DVec2, DVec3};
 use kernel::{hull_overlaps, Kernel};
@@ -72,6 +74,9 @@ pub struct KernelStats {
     /// The most fragments held at once by one worker: one tile row's (the A-buffer's working
     /// memory, per thread).
     pub peak_fragments_held: usize,
+    /// Pixels whose A-buffer sweep was cut into fewer time pieces than usual to bound its work
+    /// (more fragments than [`SWEEP_WORK_PER_PIXEL`] allows at full resolution).
+    pub coarse_pixels: usize,
 }
 
 impl KernelStats {
@@ -84,8 +89,16 @@ impl KernelStats {
             ),
             None => String::new(),
         };
+        let coarse = if self.coarse_pixels > 0 {
+            format!(
+                "  {} pixel(s) had so many fragments that their visibility was resolved over fewer time pieces (work per pixel at most {SWEEP_WORK_PER_PIXEL} fragment steps)\n",
+                self.coarse_pixels
+            )
+        } else {
+            String::new()
+        };
         format!(
-            "kernel3d: {} sub-frame(s) in {} pass(es) of at most {} kernels (held at once: {}), {} kernels, {} fragments; peak {} fragments on one pixel, {} held at once by a worker (one tile row, {} KiB)\n{capped}",
+            "kernel3d: {} sub-frame(s) in {} pass(es) of at most {} kernels (held at once: {}), {} kernels, {} fragments; peak {} fragments on one pixel, {} held at once by a worker (one tile row, {} KiB)\n{capped}{coarse}",
             self.subframes,
             self.passes,
             MAX_KERNELS_PER_PASS,
@@ -235,6 +248,7 @@ pub(super) fn render(
             kernel3d.peak_fragments_per_pixel =
                 kernel3d.peak_fragments_per_pixel.max(tile.peak_pixel);
             kernel3d.peak_fragments_held = kernel3d.peak_fragments_held.max(tile.peak_held);
+            kernel3d.coarse_pixels += tile.coarse;
             blocks.push(tile.resolved);
         }
         grid.scatter(&blocks, |pixel, r| {
@@ -478,7 +492,11 @@ fn resolve_tile(
         for (i, list) in fragments.iter_mut().enumerate() {
             out.peak_pixel = out.peak_pixel.max(list.len());
             out.resolved.push(match visible_depth {
-                None => resolve_exact(list, exposure),
+                None => {
+                    let r = resolve_exact(list, exposure);
+                    out.coarse += usize::from(r.coarse);
+                    r
+                }
                 Some(depths) => {
                     let p = y as usize * camera.width as usize + x0 as usize + i;
                     // §5.5: the passes run per sub-frame and add up, weighted by the shutter.
@@ -511,4 +529,6 @@ struct TileResult {
     peak_pixel: usize,
     /// The most fragments held at once (one row's).
     peak_held: usize,
+    /// Pixels resolved over fewer pieces to bound their work.
+    coarse: usize,
 }
