@@ -68,14 +68,7 @@ fn unit_sphere_scene(surfels: Vec<Surfel>, motion: Motion) -> Scene {
         160,
     )
     .unwrap();
-    scene(camera, vec![object(white(surfels), motion)])
-}
-
-fn white(mut surfels: Vec<Surfel>) -> Vec<Surfel> {
-    for s in &mut surfels {
-        s.colour = [1.0; 3];
-    }
-    surfels
+    scene(camera, vec![object(coloured(surfels, [1.0; 3]), motion)])
 }
 
 /// Every method, kernel3d with both visibilities.

@@ -168,13 +168,6 @@ fn square(size: f64, spacing: f64, z: f64) -> Vec<Surfel> {
     patch(DVec3::new(0.0, 0.0, z), [size, size], spacing, false)
 }
 
-fn coloured(mut surfels: Vec<Surfel>, colour: [f32; 3]) -> Vec<Surfel> {
-    for s in &mut surfels {
-        s.colour = colour;
-    }
-    surfels
-}
-
 /// A translation from `from` to `to` over the exposure, turned by `rotation` throughout.
 fn sliding(rotation: DQuat, from: DVec3, to: DVec3) -> streak::scene::Motion {
     let at = |translation| Pose {
@@ -1034,10 +1027,10 @@ mod stiff {
             64,
         )
         .unwrap();
-        let mut surfels = streak::surfels::sphere(0.001, 0.000_003_54).unwrap();
-        for s in &mut surfels {
-            s.colour = [1.0; 3];
-        }
+        let surfels = coloured(
+            streak::surfels::sphere(0.001, 0.000_003_54).unwrap(),
+            [1.0; 3],
+        );
         assert!(surfels.len() > 1_000_000);
         let path = linear(DVec3::ZERO, DVec3::new(0.01, 0.0, 0.0));
         let scene = scene(camera, vec![object(surfels, path)]);

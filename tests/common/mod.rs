@@ -74,6 +74,14 @@ pub fn patch(centre: DVec3, size: [f64; 2], spacing: f64, facing_away: bool) -> 
         .collect()
 }
 
+/// `surfels`, all of `colour`.
+pub fn coloured(mut surfels: Vec<Surfel>, colour: [f32; 3]) -> Vec<Surfel> {
+    for s in &mut surfels {
+        s.colour = colour;
+    }
+    surfels
+}
+
 /// A motion through poses at the given times.
 pub fn motion(keys: &[(f64, Pose)]) -> Motion {
     Motion::new(keys.iter().map(|&(t, pose)| Keyframe { t, pose }).collect())
