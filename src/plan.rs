@@ -301,8 +301,8 @@ struct Fit {
     weight: f64,
 }
 
-/// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal pieces
-/// of [t0, t1].
+/// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal
+/// pieces of [t0, t1].
 fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
     let (mut deviation, mut longest, mut weight) = (0.0f64, 0.0f64, 0.0f64);
     for [a, b] in pieces(t0, t1, k) {
