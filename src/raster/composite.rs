@@ -86,6 +86,8 @@ pub(super) struct PixelState<const B: usize> {
     group_depth: [f32; B],
     group_tolerance: [f32; B],
     group_coverage: [f32; B],
+    /// The bins the open group touches, [first, last): the only ones closing it must visit.
+    group_bins: [usize; 2],
 }
 
 /// The bins a footprint's time window overlaps, and the window in bin units.
@@ -108,6 +110,7 @@ impl<const B: usize> PixelState<B> {
         group_depth: [f32::INFINITY; B],
         group_tolerance: [0.0; B],
         group_coverage: [0.0; B],
+        group_bins: [B, 0],
     };
 
     /// Whether nothing behind can show any more.
@@ -145,6 +148,10 @@ impl<const B: usize> PixelState<B> {
         if !same_surface {
             self.close_group(bins);
         }
+        self.group_bins = [
+            self.group_bins[0].min(span.first),
+            self.group_bins[1].max(span.last),
+        ];
         self.follow(depth, f.depth_tolerance, &span);
         if f.additive {
             for c in 0..3 {
@@ -209,10 +216,13 @@ impl<const B: usize> PixelState<B> {
     /// (0.3×). Clipped bin by bin, 20 % of the background showed through a sliding sphere; the
     /// total is right, only its spread in time is not.
     fn spill_overflow(&mut self, bins: &TimeBins<B>) {
+        let [first, last] = self.group_bins;
+        let coverages = &mut self.group_coverage[first..last];
+        let masses = &bins.mass[first..last];
         // Each round fills at least one more bin or places all the excess: at most B rounds.
         for _ in 0..B {
             let (mut excess, mut held) = (0.0, 0.0);
-            for (coverage, &mass) in self.group_coverage.iter_mut().zip(&bins.mass) {
+            for (coverage, &mass) in coverages.iter_mut().zip(masses) {
                 if *coverage > mass {
                     excess += *coverage - mass;
                     *coverage = mass;
@@ -224,7 +234,7 @@ impl<const B: usize> PixelState<B> {
                 return;
             }
             let scale = 1.0 + excess / held;
-            for (coverage, &mass) in self.group_coverage.iter_mut().zip(&bins.mass) {
+            for (coverage, &mass) in coverages.iter_mut().zip(masses) {
                 if *coverage < mass {
                     *coverage *= scale;
                 }
@@ -237,18 +247,21 @@ impl<const B: usize> PixelState<B> {
         for c in 0..3 {
             self.colour[c] += self.remaining * self.group_emission[c];
         }
+        let [first, last] = self.group_bins;
         if self.group_weight > 0.0 {
             self.spill_overflow(bins);
-            let (mut visible, mut remaining) = (0.0, 0.0);
-            for b in 0..B {
+            let mut visible = 0.0;
+            for b in first..last {
                 let mass = bins.mass[b];
                 if mass > 0.0 {
                     let alpha = opacity(f64::from(self.group_coverage[b] / mass)) as f32;
                     visible += self.transmittance[b] * alpha * mass;
                     self.transmittance[b] *= 1.0 - alpha;
-                    remaining += self.transmittance[b] * mass;
                 }
             }
+            // The bins the group does not touch keep their transmittance: what it hides is what
+            // it shows.
+            let remaining = (self.remaining - visible).max(0.0);
             let k = visible / self.group_weight;
             for c in 0..3 {
                 self.colour[c] += k * self.group_colour[c];
@@ -256,8 +269,7 @@ impl<const B: usize> PixelState<B> {
             if self.remaining >= VISIBLE_REMAINDER && remaining < VISIBLE_REMAINDER {
                 // The surface's depth as far as its chain reached (its nearest footprint may be
                 // the soft edge of something in front that the chain joined).
-                self.front_depth = self
-                    .group_depth
+                self.front_depth = self.group_depth[first..last]
                     .iter()
                     .filter(|d| d.is_finite())
                     .fold(f32::NEG_INFINITY, |a, &d| a.max(d));
@@ -267,8 +279,11 @@ impl<const B: usize> PixelState<B> {
         self.group_colour = [0.0; 3];
         self.group_emission = [0.0; 3];
         self.group_weight = 0.0;
-        self.group_depth = [f32::INFINITY; B];
-        self.group_coverage = [0.0; B];
+        if first < last {
+            self.group_depth[first..last].fill(f32::INFINITY);
+            self.group_coverage[first..last].fill(0.0);
+        }
+        self.group_bins = [B, 0];
     }
 
     /// The pixel's premultiplied colour, the share of the exposure that shows what lies behind,
