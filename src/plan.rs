@@ -237,38 +237,36 @@ impl<'a> Plan<'a> {
     }
 }
 
-/// Screen position of a probe point at time t, if in front of the camera.
-fn screen_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<DVec2> {
-    let p = object
-        .motion
-        .pose_at(t)
-        .to_affine()
-        .transform_point3(object.surfels()[probe].position);
-    camera
-        .project(camera.view.transform_point3(p))
-        .map(|(px, _)| px)
+/// What the plan measures of a probe at one instant.
+#[derive(Clone, Copy)]
+struct ProbeView {
+    /// Screen position, px.
+    screen: DVec2,
+    /// Screen weight per unit of area and focal length², n·(e − p)/z³ (view space, where the eye
+    /// e is the origin).
+    weight: f64,
+    /// The same facing the eye, |e − p|/z³.
+    facing_weight: f64,
 }
 
-/// A probe's screen weight per unit of area and focal length² at time t, n·(e − p)/z³, and the
-/// same facing the eye, |e − p|/z³ (view space, where the eye e is the origin).
-fn weight_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> (f64, f64) {
+/// A probe at time t (its pose evaluated once), if in front of the camera.
+fn probe_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<ProbeView> {
     let pose = object.motion.pose_at(t).to_affine();
     let surfel = &object.surfels()[probe];
     let p_view = camera
         .view
         .transform_point3(pose.transform_point3(surfel.position));
+    let (screen, depth) = camera.project(p_view)?;
     let n_view = camera
         .view
         .transform_vector3(pose.transform_vector3(surfel.normal))
         .normalize_or_zero();
-    let depth_cubed = (-p_view.z).powi(3);
-    if !(depth_cubed > 0.0) {
-        return (0.0, 0.0);
-    }
-    (
-        n_view.dot(-p_view) / depth_cubed,
-        p_view.length() / depth_cubed,
-    )
+    let depth_cubed = depth.powi(3);
+    Some(ProbeView {
+        screen,
+        weight: n_view.dot(-p_view) / depth_cubed,
+        facing_weight: p_view.length() / depth_cubed,
+    })
 }
 
 /// [t0, t1] cut into `k` equal pieces.
@@ -308,8 +306,8 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
     for [a, b] in pieces(t0, t1, k) {
         for &probe in probes {
             let (pa, pb) = (
-                screen_at(camera, object, probe, a),
-                screen_at(camera, object, probe, b),
+                probe_at(camera, object, probe, a),
+                probe_at(camera, object, probe, b),
             );
             let (Some(pa), Some(pb)) = (pa, pb) else {
                 // A path that crosses the near plane runs off to infinity on screen: no chord
@@ -319,22 +317,17 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
                 }
                 continue;
             };
-            longest = longest.max(pa.distance(pb));
-            let (wa, wb) = (
-                weight_at(camera, object, probe, a).0,
-                weight_at(camera, object, probe, b).0,
-            );
+            longest = longest.max(pa.screen.distance(pb.screen));
             for s in 1..DEVIATION_SAMPLES {
                 let share = s as f64 / DEVIATION_SAMPLES as f64;
-                let t = a + (b - a) * share;
-                deviation = match screen_at(camera, object, probe, t) {
-                    Some(p) => deviation.max(distance_to_segment(p, pa, pb)),
-                    None => f64::INFINITY,
+                let Some(p) = probe_at(camera, object, probe, a + (b - a) * share) else {
+                    deviation = f64::INFINITY;
+                    continue;
                 };
-                let (w, facing_weight) = weight_at(camera, object, probe, t);
-                let chord = wa + (wb - wa) * share;
-                if facing_weight > 0.0 {
-                    weight = weight.max((w - chord).abs() / facing_weight);
+                deviation = deviation.max(distance_to_segment(p.screen, pa.screen, pb.screen));
+                let chord = pa.weight + (pb.weight - pa.weight) * share;
+                if p.facing_weight > 0.0 {
+                    weight = weight.max((p.weight - chord).abs() / p.facing_weight);
                 }
             }
         }
@@ -415,8 +408,9 @@ fn plan_motion(
                     let ta = open + (close - open) * i as f64 / samples as f64;
                     let tb = open + (close - open) * (i + 1) as f64 / samples as f64;
                     Some(
-                        screen_at(camera, object, probe, ta)?
-                            .distance(screen_at(camera, object, probe, tb)?),
+                        probe_at(camera, object, probe, ta)?
+                            .screen
+                            .distance(probe_at(camera, object, probe, tb)?.screen),
                     )
                 })
                 .sum::<f64>()
