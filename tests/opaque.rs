@@ -107,17 +107,9 @@ fn least_coverage_under_a_sliding_sphere(surfels: Vec<Surfel>, shift: f64, metho
     let radius_px = f * (1.0f64 / 4.0).asin().tan();
     let shift_px = f * shift / 4.0;
     let image = draw(&scene, method);
-    let mut worst = 1.0f32;
-    for y in 0..160u32 {
-        for x in 0..160u32 {
-            let (dx, dy) = (f64::from(x) + 0.5 - 80.0, f64::from(y) + 0.5 - 80.0);
-            let farthest = (dx + shift_px).hypot(dy).max((dx - shift_px).hypot(dy));
-            if farthest < radius_px - 3.0 {
-                worst = worst.min(image.pixels[(y * 160 + x) as usize][0]);
-            }
-        }
-    }
-    worst
+    least_red_where(&image, |dx, dy| {
+        (dx + shift_px).hypot(dy).max((dx - shift_px).hypot(dy)) < radius_px - 3.0
+    }) as f32
 }
 
 /// How much of the background `method` may show through a sphere sliding 25 px, where the sphere

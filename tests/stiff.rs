@@ -183,22 +183,6 @@ fn at(values: &[f64], width: u32, x: u32, y: u32) -> f64 {
     values[(y * width + x) as usize]
 }
 
-/// The least value over pixels whose centres lie within `half` px of the image centre in both x
-/// and y (a square window).
-fn least_within(values: &[f64], width: u32, height: u32, half: f64) -> f64 {
-    let mut least = f64::INFINITY;
-    for y in 0..height {
-        for x in 0..width {
-            let dx = f64::from(x) + 0.5 - f64::from(width) / 2.0;
-            let dy = f64::from(y) + 0.5 - f64::from(height) / 2.0;
-            if dx.abs().max(dy.abs()) <= half {
-                least = least.min(at(values, width, x, y));
-            }
-        }
-    }
-    least
-}
-
 /// The brightness-weighted centroid of the red channel.
 fn centroid(image: &Framebuffer) -> [f64; 2] {
     let (mut sum, mut mx, mut my) = (0.0, 0.0, 0.0);
@@ -468,7 +452,8 @@ mod stiff {
             // Inside the start square (2 px clear of its soft edge) the square covers every pixel at
             // every instant: opaque in every method. (Blur's ellipses pass the pixel at ever other
             // depths; its depth groups chain along them, where they once leaked 16 %.)
-            let least = least_within(&red(&image), 96, 96, half_start_px - 2.0);
+            let half = half_start_px - 2.0;
+            let least = least_red_where(&image, |dx, dy| dx.abs().max(dy.abs()) <= half);
             assert!(
                 least > DENSE_COVERAGE,
                 "{name}: a hole of coverage {least} at the centre"

@@ -189,6 +189,22 @@ pub const UNIT_SPHERE_VIEW: &str = r#"
 /// Least coverage inside a dense closed surface: nothing of what lies behind visible in 8 bits.
 pub const OPAQUE: f32 = 0.999;
 
+/// The least red value of `image` over the pixels whose centres, as offsets (dx, dy) from the
+/// image centre in px, satisfy `inside` (∞ when there are none).
+pub fn least_red_where(image: &Framebuffer, inside: impl Fn(f64, f64) -> bool) -> f64 {
+    let (cx, cy) = (f64::from(image.width) / 2.0, f64::from(image.height) / 2.0);
+    let mut least = f64::INFINITY;
+    for y in 0..image.height {
+        for x in 0..image.width {
+            if inside(f64::from(x) + 0.5 - cx, f64::from(y) + 0.5 - cy) {
+                let value = image.pixels[(y * image.width + x) as usize][0];
+                least = least.min(f64::from(value));
+            }
+        }
+    }
+    least
+}
+
 /// Render a white unit sphere seen through [`UNIT_SPHERE_VIEW`] with `method` and return the least
 /// coverage of any pixel centre more than 2 px inside its silhouette (radius f·tan(asin(1/4))),
 /// asserting that nothing shows more than 3 px outside it. White on black makes coverage the value.
