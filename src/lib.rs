@@ -53,7 +53,6 @@ pub mod framebuffer;
 #[cfg(feature = "cli")]
 pub mod gallery;
 pub mod io;
-pub mod lod;
 pub mod math;
 #[cfg(feature = "cli")]
 pub mod metrics;
