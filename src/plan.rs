@@ -249,24 +249,30 @@ struct ProbeView {
     facing_weight: f64,
 }
 
-/// A probe at time t (its pose evaluated once), if in front of the camera.
-fn probe_at(camera: &Camera, object: &Object, probe: usize, t: f64) -> Option<ProbeView> {
+/// Every probe at time t, each `None` when not in front of the camera. The pose is evaluated
+/// once for all of them.
+fn probes_at(camera: &Camera, object: &Object, probes: &[usize], t: f64) -> Vec<Option<ProbeView>> {
     let pose = object.motion.pose_at(t).to_affine();
-    let surfel = &object.surfels()[probe];
-    let p_view = camera
-        .view
-        .transform_point3(pose.transform_point3(surfel.position));
-    let (screen, depth) = camera.project(p_view)?;
-    let n_view = camera
-        .view
-        .transform_vector3(pose.transform_vector3(surfel.normal))
-        .normalize_or_zero();
-    let depth_cubed = depth.powi(3);
-    Some(ProbeView {
-        screen,
-        weight: n_view.dot(-p_view) / depth_cubed,
-        facing_weight: p_view.length() / depth_cubed,
-    })
+    probes
+        .iter()
+        .map(|&probe| {
+            let surfel = &object.surfels()[probe];
+            let p_view = camera
+                .view
+                .transform_point3(pose.transform_point3(surfel.position));
+            let (screen, depth) = camera.project(p_view)?;
+            let n_view = camera
+                .view
+                .transform_vector3(pose.transform_vector3(surfel.normal))
+                .normalize_or_zero();
+            let depth_cubed = depth.powi(3);
+            Some(ProbeView {
+                screen,
+                weight: n_view.dot(-p_view) / depth_cubed,
+                facing_weight: p_view.length() / depth_cubed,
+            })
+        })
+        .collect()
 }
 
 /// [t0, t1] cut into `k` equal pieces.
@@ -303,12 +309,15 @@ struct Fit {
 /// pieces of [t0, t1].
 fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
     let (mut deviation, mut longest, mut weight) = (0.0f64, 0.0f64, 0.0f64);
+    let at = |t: f64| probes_at(camera, object, probes, t);
+    // Each piece starts where the one before ends.
+    let mut starts = at(t0);
     for [a, b] in pieces(t0, t1, k) {
-        for &probe in probes {
-            let (pa, pb) = (
-                probe_at(camera, object, probe, a),
-                probe_at(camera, object, probe, b),
-            );
+        let ends = at(b);
+        let inside: Vec<Vec<Option<ProbeView>>> = (1..DEVIATION_SAMPLES)
+            .map(|s| at(a + (b - a) * (s as f64 / DEVIATION_SAMPLES as f64)))
+            .collect();
+        for (probe, (&pa, &pb)) in starts.iter().zip(&ends).enumerate() {
             let (Some(pa), Some(pb)) = (pa, pb) else {
                 // A path that crosses the near plane runs off to infinity on screen: no chord
                 // stands for it, and the renderers drop the piece, so it must be cut finer.
@@ -318,9 +327,9 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
                 continue;
             };
             longest = longest.max(pa.screen.distance(pb.screen));
-            for s in 1..DEVIATION_SAMPLES {
+            for (s, views) in (1..DEVIATION_SAMPLES).zip(&inside) {
                 let share = s as f64 / DEVIATION_SAMPLES as f64;
-                let Some(p) = probe_at(camera, object, probe, a + (b - a) * share) else {
+                let Some(p) = views[probe] else {
                     deviation = f64::INFINITY;
                     continue;
                 };
@@ -331,6 +340,7 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
                 }
             }
         }
+        starts = ends;
     }
     Fit {
         deviation,
@@ -399,23 +409,21 @@ fn plan_motion(
         (deviation_px, longest_segment_px) = (fit.deviation, fit.longest);
         capped = Some(SegmentCap::Footprints(max_segments));
     }
-    let path_px = probes
-        .iter()
-        .map(|&probe| {
-            let samples = 4 * segments.len().max(16);
-            (0..samples)
-                .filter_map(|i| {
-                    let ta = open + (close - open) * i as f64 / samples as f64;
-                    let tb = open + (close - open) * (i + 1) as f64 / samples as f64;
-                    Some(
-                        probe_at(camera, object, probe, ta)?
-                            .screen
-                            .distance(probe_at(camera, object, probe, tb)?.screen),
-                    )
-                })
-                .sum::<f64>()
-        })
-        .fold(0.0, f64::max);
+    // Each probe's screen path, summed over short chords in time order.
+    let samples = 4 * segments.len().max(16);
+    let mut paths = vec![0.0f64; probes.len()];
+    let mut previous = probes_at(camera, object, &probes, open);
+    for i in 1..=samples {
+        let t = open + (close - open) * i as f64 / samples as f64;
+        let next = probes_at(camera, object, &probes, t);
+        for (path, (a, b)) in paths.iter_mut().zip(previous.iter().zip(&next)) {
+            if let (Some(a), Some(b)) = (a, b) {
+                *path += a.screen.distance(b.screen);
+            }
+        }
+        previous = next;
+    }
+    let path_px = paths.into_iter().fold(0.0, f64::max);
     ObjectMotion::Moving {
         segments,
         path_px,
