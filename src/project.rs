@@ -316,14 +316,11 @@ pub(crate) fn motion_ellipse(
     }
     let ([t0, t1], moments) = (span, &moments);
     let (a, b) = (&a_splat, &b_splat);
+    // The splat at the sub-segment's mean time.
     let s = ((moments.mean - t0) / (t1 - t0)).clamp(0.0, 1.0);
-    let lerp = |x: f64, y: f64| x + (y - x) * s;
+    let mean = between(a, b, s);
     let chord = b.center - a.center;
-    let splat = Sym2 {
-        xx: lerp(a.covariance.xx, b.covariance.xx),
-        xy: lerp(a.covariance.xy, b.covariance.xy),
-        yy: lerp(a.covariance.yy, b.covariance.yy),
-    } + Sym2::isotropic(PREFILTER_VARIANCE_PX2);
+    let splat = mean.covariance + Sym2::isotropic(PREFILTER_VARIANCE_PX2);
     let duration = t1 - t0;
     let uniform_variance = moments.variance / (duration * duration);
     let mut motion_variance = uniform_variance;
@@ -362,15 +359,10 @@ pub(crate) fn motion_ellipse(
     Ok(ScreenSplat {
         center: a.center + chord * s,
         covariance: splat + Sym2::outer(chord).scaled(motion_variance),
-        weight: lerp(a.weight, b.weight) * moments.mass,
-        colour: [0, 1, 2].map(|c| lerp(f64::from(a.colour[c]), f64::from(b.colour[c])) as f32),
-        depth: lerp(a.depth, b.depth),
-        depth_gradient: streak_depth_gradient(
-            a.depth_gradient.lerp(b.depth_gradient, s),
-            chord,
-            b.depth - a.depth,
-            splat,
-        ),
+        weight: mean.weight * moments.mass,
+        colour: mean.colour,
+        depth: mean.depth,
+        depth_gradient: streak_depth_gradient(mean.depth_gradient, chord, b.depth - a.depth, splat),
         depth_tolerance: a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs(),
         time,
         ..*a
