@@ -267,15 +267,14 @@ impl MeshShape {
                     format!("{}: the number of surfels must be at least 1", self.samples),
                 )
             })?;
-        if !budget.fits(count) {
-            return Err(budget
-                .exceeded(
-                    &samples_field,
-                    &format!("{count} surfels are"),
-                    "sample fewer",
-                )
-                .in_file(file, ""));
-        }
+        budget
+            .allow(
+                count,
+                &samples_field,
+                &format!("{count} surfels are"),
+                "sample fewer",
+            )
+            .map_err(|e| e.in_file(file, ""))?;
         let path = base.join(&self.path);
         let mesh = Mesh::read(&path)?;
         from_mesh(&mesh, count, self.centre.unwrap_or(true)).map_err(|e| e.in_file(&path, ""))
@@ -561,15 +560,15 @@ fn object_surfels(
                 .map_err(|e| e.in_file(path, &shape_field))?;
             let file = base.join(file);
             let cloud = read_ply(&file)?;
-            if !budget.fits(cloud.positions.len()) {
-                return Err(budget
-                    .exceeded(
-                        "vertices",
-                        &format!("its {} points are", cloud.positions.len()),
-                        "thin the cloud",
-                    )
-                    .in_file(&file, ""));
-            }
+            let points = cloud.positions.len();
+            budget
+                .allow(
+                    points,
+                    "vertices",
+                    &format!("its {points} points are"),
+                    "thin the cloud",
+                )
+                .map_err(|e| e.in_file(&file, ""))?;
             return from_point_cloud(&cloud, neighbours).map_err(|e| e.in_file(&file, ""));
         }
         Shape::Volume(ref volume) => {

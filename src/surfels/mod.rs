@@ -128,6 +128,15 @@ impl Budget {
         count <= self.left
     }
 
+    /// `Ok` when `count` more surfels fit, else [`Budget::exceeded`].
+    pub(crate) fn allow(&self, count: usize, field: &str, asked: &str, advice: &str) -> Result<()> {
+        if self.fits(count) {
+            Ok(())
+        } else {
+            Err(self.exceeded(field, asked, advice))
+        }
+    }
+
     /// The error for a `field` that asks for more surfels than fit, with `advice` on making
     /// fewer.
     pub(crate) fn exceeded(&self, field: &str, asked: &str, advice: &str) -> Error {
