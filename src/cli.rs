@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::io::image as output;
+use streak::lod::Lod;
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
 use streak::render::{Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES, MAX_SUBFRAMES};
 use streak::scene::camera::check_image_size;
@@ -109,11 +110,24 @@ struct RenderArgs {
     /// `kernel3d` with the paper's GPU approximation of visibility instead of the A-buffer.
     #[arg(long)]
     approximate: bool,
+    /// Level of detail: `auto` merges surfels where the image cannot tell them apart (along the
+    /// motion of what is drawn blurred, and within a pixel); `off` draws every surfel.
+    #[arg(long, value_enum, default_value = "auto")]
+    lod: LodName,
     /// Print the plan, and what was left out and why, with counts.
     #[arg(long)]
     explain: bool,
     #[command(flatten)]
     image: ImageArgs,
+}
+
+/// `--lod` as the command line names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum LodName {
+    /// Merge where the image cannot show the difference.
+    Auto,
+    /// Full detail.
+    Off,
 }
 
 #[derive(Args)]
@@ -338,7 +352,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let method = method(&args, &scene)?;
     method.check().map_err(as_option)?;
     let start = Instant::now();
-    let plan = Plan::new(&scene, &method).map_err(as_option)?;
+    let lod = match args.lod {
+        LodName::Auto => Lod::Auto,
+        LodName::Off => Lod::Off,
+    };
+    let plan = Plan::with_lod(&scene, &method, lod).map_err(as_option)?;
     let progress = match method {
         Method::Reference { samples } => Some(bar(samples as u64, "reference frames")),
         _ => None,

@@ -53,6 +53,7 @@ pub mod framebuffer;
 #[cfg(feature = "cli")]
 pub mod gallery;
 pub mod io;
+pub mod lod;
 pub mod math;
 #[cfg(feature = "cli")]
 pub mod metrics;

@@ -8,10 +8,12 @@
 //! docs/math.md, "Sub-segment planning".
 
 use crate::error::Result;
+use crate::lod::{self, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
-use crate::render::{render_planned, Method, Progress, Render};
+use crate::render::{render_planned, trail_window, Method, Progress, Render};
 use crate::scene::camera::Camera;
 use crate::scene::{Object, Scene};
+use crate::surfels::Surfel;
 use glam::DVec2;
 
 /// A sub-segment may be at most this many tolerances long on screen. One motion ellipse stands
@@ -88,6 +90,8 @@ pub struct ObjectPlan {
     pub surfels: usize,
     /// How it will be drawn.
     pub motion: ObjectMotion,
+    /// The surfels the method draws where detail cannot show (see [`crate::lod`]).
+    pub lod: ObjectLod,
 }
 
 /// The plan for rendering one scene with one method. It borrows the scene, so it cannot be paired
@@ -111,6 +115,14 @@ impl<'a> Plan<'a> {
     /// # Errors
     /// A setting of `method` out of its range ([`Method::check`]).
     pub fn new(scene: &'a Scene, method: &Method) -> Result<Plan<'a>> {
+        Plan::with_lod(scene, method, Lod::Auto)
+    }
+
+    /// [`Plan::new`] with the level of detail `lod`.
+    ///
+    /// # Errors
+    /// A setting of `method` out of its range ([`Method::check`]).
+    pub fn with_lod(scene: &'a Scene, method: &Method, lod: Lod) -> Result<Plan<'a>> {
         method.check()?;
         let tolerance_px = method.tolerance_px();
         let (open, close) = (scene.shutter.open, scene.shutter.close);
@@ -134,10 +146,8 @@ impl<'a> Plan<'a> {
             .objects
             .iter()
             .zip(&moving)
-            .map(|(object, &moves)| ObjectPlan {
-                name: object.name.clone(),
-                surfels: object.surfels().len(),
-                motion: if moves {
+            .map(|(object, &moves)| {
+                let motion = if moves {
                     plan_motion(
                         &scene.camera,
                         object,
@@ -147,7 +157,22 @@ impl<'a> Plan<'a> {
                     )
                 } else {
                     ObjectMotion::Still
-                },
+                };
+                let kernels = matches!(method, Method::Kernel3d { .. });
+                let lod = match lod.along_fraction(kernels) {
+                    None if kernels && lod == Lod::Auto => ObjectLod {
+                        merged: None,
+                        outcome: LodOutcome::Kernels,
+                    },
+                    None => ObjectLod::OFF,
+                    Some(along) => object_lod(scene, object, &motion, method, along),
+                };
+                ObjectPlan {
+                    name: object.name.clone(),
+                    surfels: object.surfels().len(),
+                    motion,
+                    lod,
+                }
             })
             .collect();
         Ok(Plan {
@@ -177,6 +202,22 @@ impl<'a> Plan<'a> {
         render_planned(self, progress)
     }
 
+    /// The surfels of object `index` as the method draws them where detail cannot show: merged
+    /// by the level of detail, or the object's own.
+    #[must_use]
+    pub fn surfels(&self, index: usize) -> &[Surfel] {
+        match &self.objects[index].lod.merged {
+            Some(merged) => merged,
+            None => self.scene.objects[index].surfels(),
+        }
+    }
+
+    /// [`Plan::surfels`] of every object, in scene order.
+    #[must_use]
+    pub fn all_surfels(&self) -> Vec<&[Surfel]> {
+        (0..self.objects.len()).map(|i| self.surfels(i)).collect()
+    }
+
     /// Whether anything moves.
     #[must_use]
     pub fn any_moving(&self) -> bool {
@@ -194,11 +235,20 @@ impl<'a> Plan<'a> {
         line(format!("plan (tolerance {} px):", self.tolerance_px));
         for o in &self.objects {
             match &o.motion {
-                ObjectMotion::Still => line(format!(
-                    "  {:?}: {} surfels, still while the shutter is open: static path, no motion ellipses, projected once for all reference frames",
-                    o.name, o.surfels
-                )),
-                ObjectMotion::Moving { segments, path_px, deviation_px, longest_segment_px, capped } => {
+                ObjectMotion::Still => {
+                    line(format!(
+                        "  {:?}: {} surfels, still while the shutter is open: static path, no motion ellipses, projected once for all reference frames",
+                        o.name, o.surfels
+                    ));
+                    line(format!("    {}", o.lod.outcome.explain()));
+                }
+                ObjectMotion::Moving {
+                    segments,
+                    path_px,
+                    deviation_px,
+                    longest_segment_px,
+                    capped,
+                } => {
                     line(format!(
                         "  {:?}: {} surfels, moving: screen path up to {path_px:.1} px, {} linear sub-segment{} (chord deviation ≤ {deviation_px:.2} px, longest {longest_segment_px:.1} px)",
                         o.name,
@@ -206,6 +256,7 @@ impl<'a> Plan<'a> {
                         segments.len(),
                         if segments.len() == 1 { "" } else { "s" },
                     ));
+                    line(format!("    {}", o.lod.outcome.explain()));
                     match capped {
                         Some(SegmentCap::PerInterval) => line(format!(
                             "    capped at {MAX_SEGMENTS_PER_INTERVAL} sub-segments per keyframe interval: the tolerance does not hold"
@@ -235,6 +286,77 @@ impl<'a> Plan<'a> {
         }
         out
     }
+}
+
+/// The level of detail of one object for `method`: merged in square cells at each instant the
+/// method draws (`static`, the reference's frames, and still objects), along the motion for
+/// what is drawn blurred (`blur`, `kernel3d`, a hint's trail); a hint's object layer, drawn sharp,
+/// keeps full detail.
+fn object_lod(
+    scene: &Scene,
+    object: &Object,
+    motion: &ObjectMotion,
+    method: &Method,
+    along: f64,
+) -> ObjectLod {
+    let (open, close) = (scene.shutter.open, scene.shutter.close);
+    let middle = scene.shutter.middle();
+    let camera = &scene.camera;
+    match (method, motion) {
+        (Method::Static { time }, _) => {
+            lod::merge(camera, object, &[time.unwrap_or(middle)], false, along)
+        }
+        (Method::Hint { .. }, ObjectMotion::Still) => ObjectLod {
+            merged: None,
+            outcome: LodOutcome::Sharp,
+        },
+        (Method::Hint { style, .. }, ObjectMotion::Moving { .. }) if style.trail.density < 1.0 => {
+            ObjectLod {
+                merged: None,
+                outcome: LodOutcome::Strokes,
+            }
+        }
+        (Method::Hint { style, .. }, ObjectMotion::Moving { segments, .. }) => {
+            // The trail runs over its window in copies, each over its duty share of a slot: the
+            // streak whose detail blurs away is one copy's.
+            let trail = &style.trail;
+            let [start, end] = trail_window(&scene.shutter, style);
+            let copy = trail.duty / f64::from(trail.copies.max(1));
+            let times = path_times(segments, [start, end]);
+            lod::merge(camera, object, &times, true, along * copy)
+        }
+        (_, ObjectMotion::Still) => lod::merge(camera, object, &[middle], false, along),
+        (Method::Reference { .. }, ObjectMotion::Moving { .. }) => {
+            lod::merge(camera, object, &[open, middle, close], false, along)
+        }
+        (_, ObjectMotion::Moving { segments, .. }) => lod::merge(
+            camera,
+            object,
+            &path_times(segments, [open, close]),
+            true,
+            along,
+        ),
+    }
+}
+
+/// Instants at which a screen path through `segments` is measured over `window`: the window's
+/// ends and the sub-segment ends within it, thinned to at most [`MAX_PATH_SAMPLES`] (the path is
+/// then a little shorter than drawn, which only makes cells shorter).
+fn path_times(segments: &[[f64; 2]], [start, end]: [f64; 2]) -> Vec<f64> {
+    let mut ends = vec![start];
+    ends.extend(
+        segments
+            .iter()
+            .map(|s| s[1])
+            .filter(|&t| t > start && t < end),
+    );
+    ends.push(end);
+    let step = ends.len().div_ceil(MAX_PATH_SAMPLES).max(1);
+    let mut times: Vec<f64> = ends.iter().step_by(step).copied().collect();
+    if times.last() != ends.last() {
+        times.extend(ends.last());
+    }
+    times
 }
 
 /// What the plan measures of a probe at one instant.

@@ -80,36 +80,78 @@ pub fn view_surfel(
     lighting: &Lighting,
     surfel: &Surfel,
 ) -> Option<SurfelView> {
-    let p_view = instant.view_point(surfel.position);
-    let (center, depth) = camera.project(p_view)?;
-    let u_view = instant.view_vector(surfel.axis_u);
-    let v_view = instant.view_vector(surfel.axis_v);
-    let normal_view = instant.view_vector(surfel.normal);
-    let jacobian = camera.jacobian(p_view);
-    let (ju, jv) = (jacobian.apply(u_view), jacobian.apply(v_view));
-    // Ratio of the axes' parallelogram areas on screen and in object space = the area scale.
-    let object_area = surfel.axis_u.cross(surfel.axis_v).length();
-    let disc_depth = DEPTH_TOLERANCE_SIGMAS * u_view.length().max(v_view.length());
-    let depth_gradient = plane_depth_gradient(camera, p_view, normal_view, depth, disc_depth);
-    // The pre-filter spreads the footprint beyond the disc; over that spread the plane's depth
-    // moves by |∇D|·(cut-off radius of the pre-filter), which the ternary test must allow too.
-    let prefilter_reach = CUTOFF_SIGMAS * PREFILTER_VARIANCE_PX2.sqrt();
-    let depth_tolerance = disc_depth + depth_gradient.length() * prefilter_reach;
-    Some(SurfelView {
-        splat: ScreenSplat {
+    let located = Located::new(camera, instant, surfel)?;
+    Some(located.view(camera, instant, lighting, surfel))
+}
+
+/// Where a surfel's centre is at one instant and whether it faces the camera: the cheap part of a
+/// [`SurfelView`], enough to cull it.
+struct Located {
+    p_view: DVec3,
+    normal_view: DVec3,
+    center: DVec2,
+    depth: f64,
+    facing: f64,
+}
+
+impl Located {
+    /// `None` when the centre is not in front of the near plane.
+    fn new(camera: &Camera, instant: &Instant, surfel: &Surfel) -> Option<Located> {
+        let p_view = instant.view_point(surfel.position);
+        let (center, depth) = camera.project(p_view)?;
+        let normal_view = instant.view_vector(surfel.normal);
+        Some(Located {
+            p_view,
+            normal_view,
             center,
-            covariance: Sym2::outer(ju) + Sym2::outer(jv),
-            weight: surfel.area * ju.perp_dot(jv).abs() / object_area,
-            colour: lighting.shade(surfel.colour, instant.world_normal(surfel.normal)),
             depth,
-            depth_gradient,
-            depth_tolerance,
-            time: TimeExtent::WHOLE_FRAME,
-            profile: Profile::Gaussian,
-            additive: false,
-        },
-        facing: -normal_view.dot(p_view) / (normal_view.length() * p_view.length()),
-    })
+            facing: -normal_view.dot(p_view) / (normal_view.length() * p_view.length()),
+        })
+    }
+
+    /// The whole view.
+    fn view(
+        self,
+        camera: &Camera,
+        instant: &Instant,
+        lighting: &Lighting,
+        surfel: &Surfel,
+    ) -> SurfelView {
+        let Located {
+            p_view,
+            normal_view,
+            center,
+            depth,
+            facing,
+        } = self;
+        let u_view = instant.view_vector(surfel.axis_u);
+        let v_view = instant.view_vector(surfel.axis_v);
+        let jacobian = camera.jacobian(p_view);
+        let (ju, jv) = (jacobian.apply(u_view), jacobian.apply(v_view));
+        // Ratio of the axes' parallelogram areas on screen and in object space = the area scale.
+        let object_area = surfel.axis_u.cross(surfel.axis_v).length();
+        let disc_depth = DEPTH_TOLERANCE_SIGMAS * u_view.length().max(v_view.length());
+        let depth_gradient = plane_depth_gradient(camera, p_view, normal_view, depth, disc_depth);
+        // The pre-filter spreads the footprint beyond the disc; over that spread the plane's depth
+        // moves by |∇D|·(cut-off radius of the pre-filter), which the ternary test must allow too.
+        let prefilter_reach = CUTOFF_SIGMAS * PREFILTER_VARIANCE_PX2.sqrt();
+        let depth_tolerance = disc_depth + depth_gradient.length() * prefilter_reach;
+        SurfelView {
+            splat: ScreenSplat {
+                center,
+                covariance: Sym2::outer(ju) + Sym2::outer(jv),
+                weight: surfel.area * ju.perp_dot(jv).abs() / object_area,
+                colour: lighting.shade(surfel.colour, instant.world_normal(surfel.normal)),
+                depth,
+                depth_gradient,
+                depth_tolerance,
+                time: TimeExtent::WHOLE_FRAME,
+                profile: Profile::Gaussian,
+                additive: false,
+            },
+            facing,
+        }
+    }
 }
 
 /// Screen gradient of the depth of the plane through `p_view` with normal `normal_view`.
@@ -182,19 +224,24 @@ impl Culled {
     }
 }
 
+/// Surfels per parallel task of [`per_surfel`].
+const SURFEL_CHUNK: usize = 1024;
+
 /// Run `make` for surfels 0..`count` in parallel, each keeping footprints or counting why not,
 /// and gather the results in surfel order (so the list does not depend on the thread count).
-/// Collecting per surfel keeps only what survives: with hundreds of sub-segments per surfel,
-/// most of them off screen, collecting every result first would cost gigabytes.
+/// Collecting per chunk of surfels keeps only what survives: with hundreds of sub-segments per
+/// surfel, most of them off screen, collecting every result first would cost gigabytes.
 pub fn per_surfel(
     count: usize,
     make: impl Fn(usize, &mut Vec<Footprint>, &mut Culled) + Sync,
 ) -> (Vec<Footprint>, Culled) {
-    let parts: Vec<(Vec<Footprint>, Culled)> = (0..count)
+    let parts: Vec<(Vec<Footprint>, Culled)> = (0..count.div_ceil(SURFEL_CHUNK))
         .into_par_iter()
-        .map(|i| {
-            let (mut kept, mut culled) = (Vec::new(), Culled::default());
-            make(i, &mut kept, &mut culled);
+        .map(|chunk| {
+            let (mut kept, mut culled) = (Vec::with_capacity(SURFEL_CHUNK), Culled::default());
+            for i in chunk * SURFEL_CHUNK..((chunk + 1) * SURFEL_CHUNK).min(count) {
+                make(i, &mut kept, &mut culled);
+            }
             (kept, culled)
         })
         .collect();
@@ -221,27 +268,31 @@ pub fn static_footprint(camera: &Camera, view: &SurfelView) -> Result<Footprint,
         .map_err(Cull::Raster)
 }
 
-/// Sharp footprints of every surfel of `object` at time `t`, appended to `footprints`.
+/// Sharp footprints at time `t` of `surfels` moving with `object` (its own, or merged by the
+/// level of detail), appended to `footprints`. Back faces are culled before the rest of their
+/// view is worked out.
 pub fn object_footprints_at(
     camera: &Camera,
     lighting: &Lighting,
-    object: &Object,
+    (object, surfels): (&Object, &[Surfel]),
     t: f64,
     footprints: &mut Vec<Footprint>,
     culled: &mut Culled,
 ) {
     let instant = Instant::new(camera, &object.motion.pose_at(t));
-    let results: Vec<_> = object
-        .surfels()
-        .par_iter()
-        .map(|s| match view_surfel(camera, &instant, lighting, s) {
-            Some(view) => static_footprint(camera, &view),
+    let (kept, tally) = per_surfel(surfels.len(), |i, kept, culled| {
+        let surfel = &surfels[i];
+        let result = match Located::new(camera, &instant, surfel) {
             None => Err(Cull::BehindNear),
-        })
-        .collect();
-    for result in results {
-        culled.keep(result, footprints);
-    }
+            Some(located) if !(located.facing > 0.0) => Err(Cull::BackFacing),
+            Some(located) => {
+                static_footprint(camera, &located.view(camera, &instant, lighting, surfel))
+            }
+        };
+        culled.keep(result, kept);
+    });
+    footprints.extend(kept);
+    culled.add(&tally);
 }
 
 /// Depth gradient of a motion ellipse. A pixel on the chord is covered when the moving splat

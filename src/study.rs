@@ -9,7 +9,9 @@
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::io::image::{read_exr, write_exr, write_png};
-use crate::metrics::compare;
+use crate::lod::Lod;
+use crate::metrics::{compare, ImageError};
+use crate::plan::Plan;
 use crate::plot::StudyPoint;
 use crate::render::{
     render, Method, Render, Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
@@ -52,20 +54,42 @@ pub struct StudyOptions {
     pub styles: Vec<Arc<Style>>,
 }
 
+/// The `blur` tolerance also studied at full detail (`--lod off`), to show what the level of
+/// detail buys.
+pub const FULL_DETAIL_BLUR_PX: f64 = DEFAULT_TOLERANCE_PX;
+
+/// The `kernel3d` sub-frame counts also studied at full detail.
+pub const FULL_DETAIL_SUBFRAMES: [usize; 2] = [4, 8];
+
 /// One setting to study.
 #[derive(Clone, Debug)]
 struct Setting {
     method: Method,
+    lod: Lod,
+}
+
+impl Setting {
+    /// `method` with the level of detail the plan chooses.
+    fn auto(method: Method) -> Setting {
+        Setting {
+            method,
+            lod: Lod::Auto,
+        }
+    }
 }
 
 impl Setting {
     fn knob(&self) -> String {
-        match &self.method {
+        let knob = match &self.method {
             Method::Static { .. } => "t=mid".to_string(),
             Method::Blur { tolerance_px } => format!("τ={tolerance_px}px"),
             Method::Reference { samples } => format!("N={samples}"),
             Method::Hint { style, .. } => format!("style={}", style.name()),
             Method::Kernel3d { .. } => self.kernel_label("F=", ""),
+        };
+        match self.lod {
+            Lod::Off => format!("{knob} lod=off"),
+            _ => knob,
         }
     }
 
@@ -90,22 +114,30 @@ impl Setting {
 
     /// The plotted series: the method, with `kernel3d`'s GPU approximation a series of its own.
     fn series(&self) -> String {
-        match &self.method {
+        let series = match &self.method {
             Method::Kernel3d {
                 visibility: Visibility::Approximate,
                 ..
             } => format!("{} approx", self.method.name()),
             method => method.name().to_string(),
+        };
+        match self.lod {
+            Lod::Off => format!("{series} full detail"),
+            _ => series,
         }
     }
 
     fn file_stem(&self) -> String {
-        match &self.method {
+        let stem = match &self.method {
             Method::Static { .. } => "static".to_string(),
             Method::Blur { tolerance_px } => format!("blur-tol{tolerance_px}"),
             Method::Reference { samples } => format!("reference-n{samples}"),
             Method::Hint { style, .. } => format!("hint-{}", style.name()),
             Method::Kernel3d { .. } => format!("kernel3d-{}", self.kernel_label("f", "-approx")),
+        };
+        match self.lod {
+            Lod::Off => format!("{stem}-lod-off"),
+            _ => stem,
         }
     }
 }
@@ -113,7 +145,7 @@ impl Setting {
 /// Plan and render once, returning the image and the elapsed seconds.
 fn timed(scene: &Scene, setting: &Setting) -> Result<(Render, f64)> {
     let start = Instant::now();
-    let out = render(scene, &setting.method, None)?;
+    let out = Plan::with_lod(scene, &setting.method, setting.lod)?.render(None);
     Ok((out, start.elapsed().as_secs_f64()))
 }
 
@@ -195,37 +227,48 @@ pub fn run(
             .join(format!("converged-n{}.png", options.reference_samples)),
     )?;
 
-    let mut setups = vec![Setting {
-        method: Method::STATIC,
-    }];
-    setups.extend(BLUR_TOLERANCES_PX.iter().map(|&tolerance_px| Setting {
-        method: Method::Blur { tolerance_px },
-    }));
+    let mut setups = vec![Setting::auto(Method::STATIC)];
+    setups.extend(
+        BLUR_TOLERANCES_PX
+            .iter()
+            .map(|&tolerance_px| Setting::auto(Method::Blur { tolerance_px })),
+    );
+    setups.push(Setting {
+        method: Method::Blur {
+            tolerance_px: FULL_DETAIL_BLUR_PX,
+        },
+        lod: Lod::Off,
+    });
     let styles = if options.styles.is_empty() {
         vec![Arc::new(Style::default())]
     } else {
         options.styles.clone()
     };
-    setups.extend(styles.into_iter().map(|style| Setting {
-        method: Method::Hint {
+    setups.extend(styles.into_iter().map(|style| {
+        Setting::auto(Method::Hint {
             style,
             tolerance_px: DEFAULT_TOLERANCE_PX,
-        },
+        })
     }));
     // Heinzle §6: the kernels at 1–8 sub-frames, and the GPU approximation at 1, 4 and 8.
     for (subframes, visibility) in KERNEL_SETTINGS {
+        setups.push(Setting::auto(Method::Kernel3d {
+            subframes: Subframes::Equal(subframes),
+            visibility,
+        }));
+    }
+    for subframes in FULL_DETAIL_SUBFRAMES {
         setups.push(Setting {
             method: Method::Kernel3d {
                 subframes: Subframes::Equal(subframes),
-                visibility,
+                visibility: Visibility::Exact,
             },
+            lod: Lod::Off,
         });
     }
     let mut n = 1;
     while n <= options.max_samples {
-        setups.push(Setting {
-            method: Method::Reference { samples: n },
-        });
+        setups.push(Setting::auto(Method::Reference { samples: n }));
         n *= 2;
     }
 
@@ -260,36 +303,51 @@ pub fn run(
     Ok(points)
 }
 
-/// The first (smallest-N) reference point whose RMSE is at most `rmse`, if any was studied.
+/// The first (smallest-N) reference point at least as accurate as `error` by `metric`, if any
+/// was studied.
 #[must_use]
-pub fn samples_to_match(points: &[StudyPoint], rmse: f64) -> Option<&StudyPoint> {
+pub fn samples_to_match<'a>(
+    points: &'a [StudyPoint],
+    metric: fn(&ImageError) -> f64,
+    error: &ImageError,
+) -> Option<&'a StudyPoint> {
     points
         .iter()
-        .find(|p| p.method == "reference" && p.error.rmse <= rmse)
+        .find(|p| p.method == "reference" && metric(&p.error) <= metric(error))
 }
 
-/// For each of `method`'s points, the reference sample count that first reaches its error and
-/// how its time compares: Heinzle Table 1's equal-error ratio. One line each, Markdown.
+/// For each of `method`'s points, the reference sample count that first reaches its error, in
+/// RMSE and in ꟻLIP, and how its time compares: Heinzle Table 1's equal-error ratio. ꟻLIP
+/// weighs the reference's stroboscopic copies as the eye does, which RMSE does not. One line
+/// each, Markdown.
 #[must_use]
 pub fn equal_error(points: &[StudyPoint], method: &str) -> String {
     let mut out = String::new();
-    for p in points.iter().filter(|p| p.method.starts_with(method)) {
-        out.push_str(&match samples_to_match(points, p.error.rmse) {
+    let matched =
+        |p: &StudyPoint, name: &str, metric: fn(&ImageError) -> f64| match samples_to_match(
+            points, metric, &p.error,
+        ) {
             Some(r) => format!(
-                "- {} {} (RMSE {:.5}, {:.3} s) matches the reference at {} ({:.3} s): {:.2}× its time\n",
-                p.method,
-                p.knob,
-                p.error.rmse,
-                p.seconds,
+                "{name} {:.5} matches the reference at {} ({:.3} s, {:.2}× its time)",
+                metric(&p.error),
                 r.knob,
                 r.seconds,
                 p.seconds / r.seconds
             ),
             None => format!(
-                "- {} {} (RMSE {:.5}, {:.3} s): no studied reference sample count reaches it\n",
-                p.method, p.knob, p.error.rmse, p.seconds
+                "{name} {:.5}: no studied reference sample count reaches it",
+                metric(&p.error)
             ),
-        });
+        };
+    for p in points.iter().filter(|p| p.method.starts_with(method)) {
+        out.push_str(&format!(
+            "- {} {} ({:.3} s): {}; {}\n",
+            p.method,
+            p.knob,
+            p.seconds,
+            matched(p, "RMSE", |e| e.rmse),
+            matched(p, "ꟻLIP", |e| e.flip)
+        ));
     }
     out
 }

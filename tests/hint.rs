@@ -8,7 +8,7 @@ use glam::DVec3;
 use std::path::Path;
 use std::sync::Arc;
 use streak::style::Style;
-use streak::{render, Framebuffer, Method, Render, Scene};
+use streak::{render, Framebuffer, Method, Plan, Render, Scene};
 
 fn style(text: &str) -> Arc<Style> {
     Arc::new(Style::parse(text, Path::new("test-style.toml")).unwrap())
@@ -186,10 +186,22 @@ fn back_facing_points_emit_no_trail() {
     assert_eq!(out.stats.hint().unwrap().trail_splats, 0);
     assert!(out.image.pixels.iter().all(|p| *p == [0.0; 3]));
     // Asked for trails from every point, they are still left out while facing away.
-    let all = hint(&scene, &style("[trail]\nemitters = \"all\""));
+    let all_style = style("[trail]\nemitters = \"all\"");
+    let all = hint(&scene, &all_style);
     assert_eq!(all.stats.hint().unwrap().trail_splats, 0);
     let culled = all.stats.hint().unwrap().trail_culled.back_facing;
-    assert!(culled >= count && culled.is_multiple_of(count), "{culled}");
+    // The trail is drawn from the plan's surfels (merged along the motion): each is culled on
+    // every sub-segment.
+    let method = Method::Hint {
+        style: all_style,
+        tolerance_px: 1.0,
+    };
+    let trail_surfels = Plan::new(&scene, &method).unwrap().surfels(0).len();
+    assert!(trail_surfels < count, "{trail_surfels}");
+    assert!(
+        culled >= trail_surfels && culled.is_multiple_of(trail_surfels),
+        "{culled}"
+    );
 }
 
 #[test]

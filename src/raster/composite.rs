@@ -58,7 +58,7 @@ fn bin_span<const B: usize>([lo, hi]: [f32; 2], bins: &TimeBins<B>) -> BinSpan {
     let u0 = ((lo - bins.start) * bins.bins_per_time).clamp(0.0, end);
     let u1 = ((hi - bins.start) * bins.bins_per_time).clamp(0.0, end);
     let first = (u0 as usize).min(B - 1);
-    let last = (u1.ceil() as usize).clamp(first + 1, B);
+    let last = (super::ceil_non_negative(u1) as usize).clamp(first + 1, B);
     BinSpan {
         first,
         last,

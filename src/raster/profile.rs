@@ -6,7 +6,21 @@
 //! beyond the rasterizer's cut-off radius, and normalized so that it integrates to the footprint's
 //! weight: coverage and energy mean the same whatever the texture.
 
-use super::CUTOFF_SIGMAS;
+use super::{CUTOFF_Q, CUTOFF_SIGMAS};
+use std::sync::LazyLock;
+
+/// Steps of the table of exp(−q/2) over q ∈ [0, cut-off²] that Gaussian footprints are evaluated
+/// from. Linear interpolation between entries h = 9/1024 apart errs by at most h²/8 · ¼ ≈ 2.4·10⁻⁶
+/// of the value (the second derivative of exp(−q/2) is a quarter of it); `f32::exp` was a
+/// tenth of the rasterizer's time.
+const GAUSSIAN_STEPS: usize = 1024;
+
+/// exp(−q/2) at q = i · cut-off² / [`GAUSSIAN_STEPS`], with one entry past the end.
+static GAUSSIAN_TABLE: LazyLock<[f32; GAUSSIAN_STEPS + 2]> = LazyLock::new(|| {
+    std::array::from_fn(|i| {
+        (-0.5 * f64::from(CUTOFF_Q) * i as f64 / GAUSSIAN_STEPS as f64).exp() as f32
+    })
+});
 
 /// Radius of the disc profile, in standard deviations: where a Gaussian splat visibly ends.
 const DISC_RADIUS: f32 = 2.0;
@@ -129,7 +143,8 @@ impl Texture {
 /// Evaluates one footprint's profile at pixel offsets; made once per footprint and tile, so the
 /// texture's orientation is found once rather than per pixel.
 pub(super) enum Sampler<'a> {
-    Gaussian,
+    /// exp(−q/2), interpolated in [`GAUSSIAN_TABLE`].
+    Gaussian(&'static [f32; GAUSSIAN_STEPS + 2]),
     Disc,
     Ring,
     /// Rows of the map from a pixel offset to unit coordinates along the major and minor axes.
@@ -146,7 +161,7 @@ impl<'a> Sampler<'a> {
     /// The sampler for `profile` on a footprint with inverse covariance `conic` (xx, xy, yy).
     pub(super) fn new(profile: Profile, conic: [f32; 3], texture: Option<&'a Texture>) -> Self {
         match (profile, texture) {
-            (Profile::Gaussian, _) => Sampler::Gaussian,
+            (Profile::Gaussian, _) => Sampler::Gaussian(&GAUSSIAN_TABLE),
             (Profile::Disc, _) => Sampler::Disc,
             (Profile::Ring, _) => Sampler::Ring,
             (Profile::Texture, None) => Sampler::Blank,
@@ -181,7 +196,13 @@ impl<'a> Sampler<'a> {
     pub(super) fn value(&self, [dx, dy]: [f32; 2], q: f32) -> f32 {
         let ramp = |x: f32| (x / EDGE_WIDTH + 0.5).clamp(0.0, 1.0);
         match self {
-            Sampler::Gaussian => (-0.5 * q).exp(),
+            Sampler::Gaussian(table) => {
+                // q ≥ 0 up to rounding; a negative q saturates to the first entry.
+                let u = q * (GAUSSIAN_STEPS as f32 / CUTOFF_Q);
+                let i = (u as usize).min(GAUSSIAN_STEPS);
+                let (v0, v1) = (table[i], table[i + 1]);
+                v0 + (v1 - v0) * (u - i as f32)
+            }
             Sampler::Disc => ramp(DISC_RADIUS - q.sqrt()),
             Sampler::Ring => {
                 let r = q.sqrt();
@@ -242,6 +263,20 @@ mod tests {
                 "{profile:?}: {numeric} vs {stated}"
             );
         }
+    }
+
+    #[test]
+    fn the_gaussian_table_matches_exp_to_its_stated_error() {
+        let sampler = Sampler::new(Profile::Gaussian, [1.0, 0.0, 1.0], None);
+        let worst = (0..=9000)
+            .map(|i| {
+                let q = i as f32 * CUTOFF_Q / 9000.0;
+                let exact = (-0.5 * f64::from(q)).exp();
+                (f64::from(sampler.value([0.0, 0.0], q)) / exact - 1.0).abs()
+            })
+            .fold(0.0, f64::max);
+        // Interpolation error 2.4e-6 (see GAUSSIAN_STEPS) plus f32 rounding.
+        assert!(worst < 3e-6, "{worst}");
     }
 
     #[test]

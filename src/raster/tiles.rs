@@ -3,6 +3,7 @@
 //! per-tile results put back into one image.
 
 use super::TILE_PX;
+use rayon::prelude::*;
 
 /// The image cut into tiles, row by row: tile `ty · tiles_x + tx` covers the pixels from
 /// (tx, ty)·[`TILE_PX`], cut at the image's edges.
@@ -47,24 +48,36 @@ impl TileGrid {
         ]
     }
 
-    /// Calls `put(pixel, value)` for every value of every tile's block, where a block holds its
-    /// tile's pixels row by row and `pixel` indexes the whole image row by row.
-    pub(crate) fn scatter<T>(&self, blocks: &[Vec<T>], mut put: impl FnMut(usize, &T)) {
-        for (tile, block) in blocks.iter().enumerate() {
-            let [x0, y0, x1, _] = self.pixels(tile);
-            let w = (x1 - x0) as usize;
-            for (row, chunk) in block.chunks(w).enumerate() {
-                let start = (y0 as usize + row) * self.width as usize + x0 as usize;
-                for (i, value) in chunk.iter().enumerate() {
-                    put(start + i, value);
+    /// Puts every value of every tile's block into the image's rows, in parallel: `rows` yields
+    /// one sink per image row, top to bottom, and `put(sink, x, value)` stores the value of column
+    /// `x`. A block holds its tile's pixels row by row.
+    pub(crate) fn scatter<T: Sync, R: Send>(
+        &self,
+        blocks: &[Vec<T>],
+        rows: impl IndexedParallelIterator<Item = R>,
+        put: impl Fn(&mut R, usize, &T) + Sync,
+    ) {
+        rows.enumerate().for_each(|(y, mut row)| {
+            let ty = y / TILE_PX as usize;
+            let first = ty * self.tiles_x;
+            for (tile, block) in (first..).zip(&blocks[first..first + self.tiles_x]) {
+                let [x0, y0, x1, _] = self.pixels(tile);
+                let w = (x1 - x0) as usize;
+                let start = (y - y0 as usize) * w;
+                for (i, value) in block[start..start + w].iter().enumerate() {
+                    put(&mut row, x0 as usize + i, value);
                 }
             }
-        }
+        });
     }
 }
 
-/// Item indices binned by tile, each tile's in the order the items were offered (a compressed
-/// list: one array of entries and each tile's start in it).
+/// Items binned per tile in fixed chunks of this many, in parallel; the chunks' lists are then
+/// joined in item order, so the lists do not depend on the thread count.
+const BINNING_CHUNK: usize = 1 << 13;
+
+/// Item indices binned by tile, each tile's in increasing item order (a compressed list: one
+/// array of entries and each tile's start in it).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TileLists {
     starts: Vec<usize>,
@@ -72,28 +85,38 @@ pub(crate) struct TileLists {
 }
 
 impl TileLists {
-    /// Bin the items `order` names, in that order; `tiles_of(item, visit)` calls `visit` with
-    /// each tile the item touches. It is called twice per item (to count, then to fill), and must
-    /// name the same tiles both times.
+    /// Bin items 0..`count`; `tiles_of(item, visit)` calls `visit` with each tile the item
+    /// touches (each at most once).
     pub(crate) fn new(
         grid: &TileGrid,
-        order: &[u32],
-        tiles_of: impl Fn(u32, &mut dyn FnMut(usize)),
+        count: usize,
+        tiles_of: impl Fn(u32, &mut dyn FnMut(usize)) + Sync,
     ) -> TileLists {
+        let chunks: Vec<Vec<(u32, u32)>> = (0..count.div_ceil(BINNING_CHUNK))
+            .into_par_iter()
+            .map(|chunk| {
+                let items = chunk * BINNING_CHUNK..((chunk + 1) * BINNING_CHUNK).min(count);
+                let mut pairs = Vec::new();
+                for item in items {
+                    tiles_of(item as u32, &mut |tile| {
+                        pairs.push((tile as u32, item as u32))
+                    });
+                }
+                pairs
+            })
+            .collect();
         let mut starts = vec![0usize; grid.count() + 1];
-        for &item in order {
-            tiles_of(item, &mut |tile| starts[tile + 1] += 1);
+        for &(tile, _) in chunks.iter().flatten() {
+            starts[tile as usize + 1] += 1;
         }
         for i in 1..starts.len() {
             starts[i] += starts[i - 1];
         }
         let mut fill = starts.clone();
         let mut entries = vec![0u32; starts[grid.count()]];
-        for &item in order {
-            tiles_of(item, &mut |tile| {
-                entries[fill[tile]] = item;
-                fill[tile] += 1;
-            });
+        for &(tile, item) in chunks.iter().flatten() {
+            entries[fill[tile as usize]] = item;
+            fill[tile as usize] += 1;
         }
         TileLists { starts, entries }
     }
@@ -123,18 +146,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn lists_keep_the_offered_order_and_blocks_land_on_their_pixels() {
+    fn lists_keep_item_order_and_blocks_land_on_their_pixels() {
         // 40 × 20 px: 3 × 2 tiles, the last column and row cut short.
         let grid = TileGrid::new(40, 20);
         assert_eq!(grid.count(), 6);
         assert_eq!(grid.pixels(5), [32, 16, 40, 20]);
         // Item i touches tiles i and i + 1.
-        let lists = TileLists::new(&grid, &[2, 0, 1], |item, visit| {
+        let lists = TileLists::new(&grid, 3, |item, visit| {
             visit(item as usize);
             visit(item as usize + 1);
         });
         assert_eq!(lists.list(1), &[0, 1]);
-        assert_eq!(lists.list(2), &[2, 1]);
+        assert_eq!(lists.list(2), &[1, 2]);
         assert_eq!((lists.entries(), lists.longest()), (6, 2));
         let blocks: Vec<Vec<usize>> = (0..grid.count())
             .map(|tile| {
@@ -144,8 +167,17 @@ mod tests {
                     .collect()
             })
             .collect();
+        // Lists longer than a binning chunk are joined in item order.
+        let many = 3 * BINNING_CHUNK + 5;
+        let lists = TileLists::new(&grid, many, |item, visit| visit(item as usize % 6));
+        for tile in 0..6 {
+            let expected: Vec<u32> = (tile as u32..many as u32).step_by(6).collect();
+            assert_eq!(lists.list(tile), expected.as_slice());
+        }
         let mut image = vec![usize::MAX; 800];
-        grid.scatter(&blocks, |pixel, &value| image[pixel] = value);
+        grid.scatter(&blocks, image.par_chunks_mut(40), |row, x, &value| {
+            row[x] = value
+        });
         assert!(image.iter().enumerate().all(|(i, &v)| v == i));
     }
 }

@@ -27,12 +27,13 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
     let mut stats = Stats::default();
     let mut footprints = Vec::new();
     let camera = &scene.camera;
-    for (object, object_plan) in scene.objects.iter().zip(&plan.objects) {
+    for (index, (object, object_plan)) in scene.objects.iter().zip(&plan.objects).enumerate() {
+        let surfels = plan.surfels(index);
         let ObjectMotion::Moving { segments, .. } = &object_plan.motion else {
             object_footprints_at(
                 camera,
                 &scene.lighting,
-                object,
+                (object, surfels),
                 scene.shutter.middle(),
                 &mut footprints,
                 &mut stats.culled,
@@ -50,8 +51,8 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             .iter()
             .map(|&[t0, t1]| scene.shutter.moments(t0, t1))
             .collect();
-        let (kept, culled) = per_surfel(object.surfels().len(), |i, kept, culled| {
-            let surfel = &object.surfels()[i];
+        let (kept, culled) = per_surfel(surfels.len(), |i, kept, culled| {
+            let surfel = &surfels[i];
             let views: Vec<Option<SurfelView>> = instants
                 .iter()
                 .map(|instant| view_surfel(camera, instant, &scene.lighting, surfel))

@@ -22,6 +22,7 @@ pub use crate::raster::{
     opacity, CUTOFF_SIGMAS, OPACITY_KNEE, OPAQUE_COVERAGE, PREFILTER_VARIANCE_PX2, TILE_PX,
     TRUNCATION_GAIN,
 };
+pub(crate) use hint::trail_window;
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS};
 pub use reference::ReferenceStats;
@@ -32,6 +33,7 @@ use crate::plan::{Plan, TOLERANCE_RANGE_PX};
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, Target, TimeBins};
 use crate::scene::Scene;
 use crate::style::Style;
+use crate::surfels::Surfel;
 use std::sync::Arc;
 
 /// Most frames the reference may average (and the study may ask for).
@@ -279,7 +281,7 @@ pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render 
     let scene = plan.scene();
     let render = match plan.method() {
         Method::Static { time } => {
-            still::render(scene, time.unwrap_or_else(|| scene.shutter.middle()))
+            still::render(scene, plan, time.unwrap_or_else(|| scene.shutter.middle()))
         }
         Method::Reference { samples } => reference::render(scene, plan, *samples, progress),
         Method::Blur { .. } => blur::render(scene, plan),
@@ -296,11 +298,12 @@ pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render 
     render
 }
 
-/// The whole scene splatted at time `t`, as a layer, counting into `stats`.
-fn instant_layer(scene: &Scene, t: f64, stats: &mut Stats) -> Layer {
+/// The whole scene drawn with `surfels` (one slice per object) splatted at time `t`, as a layer,
+/// counting into `stats`.
+fn instant_layer(scene: &Scene, surfels: &[&[Surfel]], t: f64, stats: &mut Stats) -> Layer {
     rasterize_counted(
         scene,
-        &still::footprints_at(scene, t, &mut stats.culled),
+        &still::footprints_at(scene, surfels, t, &mut stats.culled),
         &TimeBins::INSTANT,
         stats,
     )

@@ -36,13 +36,20 @@ pub(super) fn render(
     progress: Option<Progress>,
 ) -> Render {
     let mut stats = Stats::default();
-    let objects = || scene.objects.iter().zip(&plan.objects);
+    let objects = || {
+        scene
+            .objects
+            .iter()
+            .zip(&plan.objects)
+            .zip(plan.all_surfels())
+            .map(|((object, object_plan), surfels)| (object, object_plan, surfels))
+    };
     let mut still = Vec::new();
-    for (object, _) in objects().filter(|(_, p)| p.motion == ObjectMotion::Still) {
+    for (object, _, surfels) in objects().filter(|(_, p, _)| p.motion == ObjectMotion::Still) {
         object_footprints_at(
             &scene.camera,
             &scene.lighting,
-            object,
+            (object, surfels),
             scene.shutter.middle(),
             &mut still,
             &mut stats.culled,
@@ -54,11 +61,11 @@ pub(super) fn render(
     for (t, mass) in scene.shutter.strata(samples) {
         footprints.clear();
         footprints.extend_from_slice(&still);
-        for (object, _) in objects().filter(|(_, p)| p.motion != ObjectMotion::Still) {
+        for (object, _, surfels) in objects().filter(|(_, p, _)| p.motion != ObjectMotion::Still) {
             object_footprints_at(
                 &scene.camera,
                 &scene.lighting,
-                object,
+                (object, surfels),
                 t,
                 &mut footprints,
                 &mut stats.culled,

@@ -1,25 +1,34 @@
 //! `static`: EWA surface splatting of the whole scene at one instant.
 
 use super::{instant_layer, Render, Stats};
+use crate::plan::Plan;
 use crate::project::{object_footprints_at, Culled};
 use crate::raster::Footprint;
 use crate::scene::Scene;
+use crate::surfels::Surfel;
 
-/// The scene splatted at time `t`.
-pub(super) fn render(scene: &Scene, t: f64) -> Render {
+/// The scene splatted at time `t`, with the plan's level of detail.
+pub(super) fn render(scene: &Scene, plan: &Plan, t: f64) -> Render {
     let mut stats = Stats::default();
-    let image = instant_layer(scene, t, &mut stats).over_colour(scene.background);
+    let image =
+        instant_layer(scene, &plan.all_surfels(), t, &mut stats).over_colour(scene.background);
     Render { image, stats }
 }
 
-/// Footprints of every object at time `t`, counting what is left out into `culled`.
-pub(super) fn footprints_at(scene: &Scene, t: f64, culled: &mut Culled) -> Vec<Footprint> {
+/// Footprints at time `t` of every object drawn with `surfels` (one slice per object), counting
+/// what is left out into `culled`.
+pub(super) fn footprints_at(
+    scene: &Scene,
+    surfels: &[&[Surfel]],
+    t: f64,
+    culled: &mut Culled,
+) -> Vec<Footprint> {
     let mut footprints = Vec::new();
-    for object in &scene.objects {
+    for (object, &surfels) in scene.objects.iter().zip(surfels) {
         object_footprints_at(
             &scene.camera,
             &scene.lighting,
-            object,
+            (object, surfels),
             t,
             &mut footprints,
             culled,

@@ -22,6 +22,7 @@ use crate::scene::{Object, Scene};
 use crate::style::{
     ramp_colour, Blend, Composite, Emitters, RampBy, Select, SpeedLines, Style, Trail, TrailColour,
 };
+use crate::surfels::Surfel;
 use glam::DVec2;
 use rayon::prelude::*;
 use speed_lines::{LineLook, SpeedLine};
@@ -102,8 +103,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
     let camera = &scene.camera;
     let (width, height) = (camera.width, camera.height);
     let shutter = &scene.shutter;
-    let duration = shutter.duration();
-    let flash = shutter.open + style.object.flash * duration;
+    let flash = flash_time(shutter, style);
     let background = style.background.unwrap_or(scene.background);
     let mut stats = Stats::default();
     let mut hint = HintStats::default();
@@ -113,7 +113,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
     let flash_views: Vec<Vec<Option<SurfelView>>> = scene
         .objects
         .iter()
-        .map(|object| views_at(scene, object, flash))
+        .map(|object| views_at(scene, (object, object.surfels()), flash))
         .collect();
     // Footprints of still objects, then of moving ones: with `object.draw` off only the moving
     // ones are left out of the picture, but all of them hide points.
@@ -140,7 +140,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
     stats.add_raster(&raster);
 
     let trail = &style.trail;
-    let window = before_flash(shutter, flash, trail.offset, trail.length);
+    let window = trail_window(shutter, style);
     let copies = copy_windows(window, trail.copies, trail.duty);
     let gradient = trail.fade < 1.0
         || matches!(
@@ -182,30 +182,16 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         let ObjectMotion::Moving { segments, .. } = &object_plan.motion else {
             continue;
         };
-        let emits: Vec<bool> = views
-            .iter()
-            .map(|view| {
-                let Some(view) = view else { return false };
-                match trail.emitters {
-                    Emitters::All => true,
-                    _ if !(view.facing > 0.0) => {
-                        hint.back_facing += 1;
-                        false
-                    }
-                    Emitters::Visible if is_hidden(&view.splat, &object_layer) => {
-                        hint.hidden += 1;
-                        false
-                    }
-                    _ => true,
-                }
-            })
-            .collect();
-        hint.emitting += emits.iter().filter(|&&e| e).count();
-        let emits: Vec<bool> = emits
-            .iter()
-            .enumerate()
-            .map(|(i, &e)| e && is_sampled(i, trail.density))
-            .collect();
+        let emits = emitters(views, trail, &object_layer, &mut hint);
+        // The trail is drawn from the plan's surfels: where it merged them, they emit by how
+        // they are seen at the flash themselves (and are what the counts count).
+        let trail_surfels = plan.surfels(index);
+        let trail_emits = if plan.objects[index].lod.merged.is_some() && trail.draw {
+            let views = views_at(scene, (object, trail_surfels), flash);
+            emitters(&views, trail, &object_layer, &mut HintStats::default())
+        } else {
+            emits.clone()
+        };
         if trail.draw && window[1] > window[0] {
             let context = TrailContext {
                 scene,
@@ -213,8 +199,14 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 window,
                 fastest_px: fastest,
             };
-            let (footprints, culled) =
-                object_trails(&context, object, segments, &copies, max_piece, &emits);
+            let (footprints, culled) = object_trails(
+                &context,
+                (object, trail_surfels),
+                segments,
+                &copies,
+                max_piece,
+                &trail_emits,
+            );
             hint.trail_splats += footprints.len();
             hint.trail_culled.add(&culled);
             trail_footprints.extend(footprints);
@@ -308,11 +300,30 @@ fn draw_trails(footprints: &[Footprint], target: &Target, trail: &Trail) -> (Lay
     }
 }
 
-/// Every surfel of `object` seen at time `t`.
-fn views_at(scene: &Scene, object: &Object, t: f64) -> Vec<Option<SurfelView>> {
+/// The instant of the flash, when the object is drawn sharp.
+fn flash_time(shutter: &Shutter, style: &Style) -> f64 {
+    shutter.open + style.object.flash * shutter.duration()
+}
+
+/// The interval `style`'s trail is drawn over.
+pub(crate) fn trail_window(shutter: &Shutter, style: &Style) -> Window {
+    let trail = &style.trail;
+    before_flash(
+        shutter,
+        flash_time(shutter, style),
+        trail.offset,
+        trail.length,
+    )
+}
+
+/// Every one of `surfels` moving with `object` seen at time `t`.
+fn views_at(
+    scene: &Scene,
+    (object, surfels): (&Object, &[Surfel]),
+    t: f64,
+) -> Vec<Option<SurfelView>> {
     let instant = Instant::new(&scene.camera, &object.motion.pose_at(t));
-    object
-        .surfels()
+    surfels
         .par_iter()
         .map(|s| view_surfel(&scene.camera, &instant, &scene.lighting, s))
         .collect()
@@ -389,10 +400,45 @@ struct TrailContext<'a> {
     fastest_px: f64,
 }
 
-/// The trail splats of one moving object over its copy windows, and what was left out.
+/// Which of the surfels seen at the flash as `views` emit a trail (counting those that do not,
+/// and why, into `hint`), thinned to the trail's density.
+fn emitters(
+    views: &[Option<SurfelView>],
+    trail: &Trail,
+    object_layer: &Layer,
+    hint: &mut HintStats,
+) -> Vec<bool> {
+    let emits: Vec<bool> = views
+        .iter()
+        .map(|view| {
+            let Some(view) = view else { return false };
+            match trail.emitters {
+                Emitters::All => true,
+                _ if !(view.facing > 0.0) => {
+                    hint.back_facing += 1;
+                    false
+                }
+                Emitters::Visible if is_hidden(&view.splat, object_layer) => {
+                    hint.hidden += 1;
+                    false
+                }
+                _ => true,
+            }
+        })
+        .collect();
+    hint.emitting += emits.iter().filter(|&&e| e).count();
+    emits
+        .iter()
+        .enumerate()
+        .map(|(i, &e)| e && is_sampled(i, trail.density))
+        .collect()
+}
+
+/// The trail splats over its copy windows of `surfels` moving with `object` (its own, or merged by
+/// the level of detail), and what was left out.
 fn object_trails(
     context: &TrailContext,
-    object: &Object,
+    (object, surfels): (&Object, &[Surfel]),
     segments: &[[f64; 2]],
     copies: &[Window],
     max_piece: f64,
@@ -428,11 +474,11 @@ fn object_trails(
         .iter()
         .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
         .collect();
-    per_surfel(object.surfels().len(), |i, kept, culled| {
+    per_surfel(surfels.len(), |i, kept, culled| {
         if !emits[i] {
             return;
         }
-        let surfel = &object.surfels()[i];
+        let surfel = &surfels[i];
         let views: Vec<Option<SurfelView>> = instants
             .iter()
             .map(|instant| {

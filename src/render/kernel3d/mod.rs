@@ -24,6 +24,7 @@ use crate::render::abuffer::{
     resolve_approximate, resolve_exact, Fragment, Resolved, SWEEP_WORK_PER_PIXEL,
 };
 use crate::scene::{Object, Scene};
+use crate::surfels::Surfel;
 use glam::{DVec2, DVec3};
 use kernel::{hull_overlaps, Kernel};
 use rayon::prelude::*;
@@ -142,18 +143,19 @@ pub(super) fn render(
     // time it needs; a moving one a kernel per sub-frame.
     let mut still_kernels = Vec::new();
     let mut moving_surfels = 0;
-    for (object, object_plan) in scene.objects.iter().zip(&plan.objects) {
+    let surfels = plan.all_surfels();
+    for ((object, object_plan), &surfels) in scene.objects.iter().zip(&plan.objects).zip(&surfels) {
         if object_plan.motion == ObjectMotion::Still {
             let span = [scene.shutter.open, scene.shutter.close];
             still_kernels.extend(kernels_over(
                 scene,
-                object,
+                (object, surfels),
                 span,
                 exposure,
                 &mut stats.culled,
             ));
         } else {
-            moving_surfels += object.surfels().len();
+            moving_surfels += surfels.len();
         }
     }
     // Passes of consecutive sub-frames, as many as keep the kernels within MAX_KERNELS_PER_PASS
@@ -185,7 +187,9 @@ pub(super) fn render(
     for (pass, first) in (0..windows.len()).step_by(per_pass).enumerate() {
         let last = (first + per_pass).min(windows.len());
         let mut kernels = still_kernels.clone();
-        for (object, object_plan) in scene.objects.iter().zip(&plan.objects) {
+        for ((object, object_plan), &surfels) in
+            scene.objects.iter().zip(&plan.objects).zip(&surfels)
+        {
             if object_plan.motion != ObjectMotion::Still {
                 for k in first..last {
                     let span = [times[k], times[k + 1]];
@@ -196,7 +200,7 @@ pub(super) fn render(
                     }
                     kernels.extend(kernels_over(
                         scene,
-                        object,
+                        (object, surfels),
                         span,
                         windows[k],
                         &mut stats.culled,
@@ -221,7 +225,7 @@ pub(super) fn render(
             (visibility == Visibility::Approximate).then(|| {
                 times[first..=last]
                     .iter()
-                    .map(|&t| instant_layer(scene, t, &mut Stats::default()).front_depth)
+                    .map(|&t| instant_layer(scene, &surfels, t, &mut Stats::default()).front_depth)
                     .collect()
             });
         let results: Vec<TileResult> = (0..grid.count())
@@ -251,8 +255,8 @@ pub(super) fn render(
             kernel3d.coarse_pixels += tile.coarse;
             blocks.push(tile.resolved);
         }
-        grid.scatter(&blocks, |pixel, r| {
-            let sum = &mut sums[pixel];
+        grid.scatter(&blocks, sums.par_chunks_mut(width as usize), |row, x, r| {
+            let sum = &mut row[x];
             for c in 0..3 {
                 sum.colour[c] += r.colour[c];
             }
@@ -311,10 +315,11 @@ fn subframe_times(scene: &Scene, plan: &Plan, subframes: Subframes) -> (Vec<f64>
     (times, None)
 }
 
-/// The kernels of `object`'s surfels over [t0, t1], whose shutter-mass interval is `window`.
+/// The kernels over [t0, t1], whose shutter-mass interval is `window`, of `surfels` moving with
+/// `object` (its own, or merged by the level of detail).
 fn kernels_over(
     scene: &Scene,
-    object: &Object,
+    (object, surfels): (&Object, &[Surfel]),
     [t0, t1]: [f64; 2],
     window: [f64; 2],
     culled: &mut Culled,
@@ -324,8 +329,7 @@ fn kernels_over(
     let instants =
         [t0, 0.5 * (t0 + t1), t1].map(|t| Instant::new(camera, &object.motion.pose_at(t)));
     let [start, middle, end] = &instants;
-    let results: Vec<Result<Kernel, Cull>> = object
-        .surfels()
+    let results: Vec<Result<Kernel, Cull>> = surfels
         .par_iter()
         .map(|surfel| {
             let (p0, p1) = (
@@ -409,20 +413,16 @@ fn bin(
         })
         .collect();
     let mut all_bounds = Vec::with_capacity(kernels.len());
-    let mut order = Vec::with_capacity(kernels.len());
-    for (index, entry) in per_kernel.iter().enumerate() {
+    for entry in &per_kernel {
         match entry {
-            Some((bounds, _)) => {
-                order.push(index as u32);
-                all_bounds.push(*bounds);
-            }
+            Some((bounds, _)) => all_bounds.push(*bounds),
             None => {
                 culled.off_screen += 1;
                 all_bounds.push([0; 4]);
             }
         }
     }
-    let lists = TileLists::new(grid, &order, |index, visit| {
+    let lists = TileLists::new(grid, kernels.len(), |index, visit| {
         if let Some((_, tiles)) = &per_kernel[index as usize] {
             tiles.iter().for_each(|&tile| visit(tile));
         }

@@ -1,0 +1,62 @@
+//! The rasterizer's throughput: a gallery scene rendered repeatedly by one method at a chosen
+//! size, reporting the median wall time and surfels per second (the figure issue 10 targets:
+//! `static` on the torus knot at 1024² on 2 threads).
+//!
+//! `cargo bench --bench raster -- [SCENE] [METHOD] [SIZE] [REPEATS]`, by default
+//! `gallery/torus_knot.toml static 1024 9`. Threads: `RAYON_NUM_THREADS`. Methods: `static`,
+//! `blur`, `kernel3d`, `reference:N`. Profile it with
+//! `perf record -g target/release/deps/raster-* gallery/torus_knot.toml static 1024 40`.
+
+use std::path::Path;
+use std::time::Instant;
+
+use streak::{Method, Plan, Scene};
+
+fn main() -> streak::Result<()> {
+    // `cargo bench` passes `--bench`; everything else is ours.
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
+    let arg = |i: usize, default: &str| args.get(i).cloned().unwrap_or_else(|| default.into());
+    let scene_path = arg(0, "gallery/torus_knot.toml");
+    let method = match arg(1, "static").as_str() {
+        "static" => Method::STATIC,
+        "blur" => Method::BLUR,
+        "kernel3d" => Method::KERNEL3D,
+        other => match other.strip_prefix("reference:").map(str::parse) {
+            Some(Ok(samples)) => Method::Reference { samples },
+            _ => panic!("unknown method {other}: static, blur, kernel3d or reference:N"),
+        },
+    };
+    let size: u32 = arg(2, "1024").parse().expect("SIZE is a number of pixels");
+    let repeats: usize = arg(3, "9").parse().expect("REPEATS is a count");
+
+    let mut scene = Scene::load(Path::new(&scene_path))?;
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let height = (u64::from(size) * u64::from(h) / u64::from(w)).max(1) as u32;
+    scene.camera = scene.camera.resized(size, height)?;
+    let surfels = scene.surfel_count();
+
+    let mut times = Vec::with_capacity(repeats);
+    let mut footprints = 0;
+    for _ in 0..repeats.max(1) {
+        let start = Instant::now();
+        let render = Plan::new(&scene, &method)?.render(None);
+        times.push(start.elapsed().as_secs_f64());
+        footprints = render.stats.footprints;
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    println!(
+        "{} {} at {size}×{height}, {} thread(s): median {:.4} s of {} (min {:.4} s), {surfels} surfels → {footprints} footprints, {:.2} M surfels/s",
+        scene_path,
+        method.name(),
+        rayon::current_num_threads(),
+        median,
+        times.len(),
+        times[0],
+        surfels as f64 / median / 1e6
+    );
+    Ok(())
+}

@@ -1,0 +1,479 @@
+//! Level of detail: surfels merged where the image cannot tell them apart, chosen by the plan for
+//! each render (docs/math.md, "Level of detail").
+//!
+//! A blurred image keeps no detail along the motion finer than a fraction of the streak, and no
+//! image keeps detail finer than a pixel. So, for each object, the surfels' screen positions at
+//! the middle of the exposure are cut into cells: [`CELL_PX`] wide across the motion and a share
+//! [`ALONG_FRACTION`] of the surfel's screen path long along it (square cells of [`CELL_PX`] for
+//! an instant). Surfels of one cell that also share a normal bucket and a depth layer are one
+//! patch of one surface; each such group becomes one surfel with the group's area, its
+//! area-weighted mean position, normal and colour, and the moment-matched Gaussian (the
+//! group's second moments about the mean, in the plane of the mean normal). Cells never reach
+//! across the motion beyond a pixel, and surfaces at different depths or facing different ways
+//! never merge. Merging is done in object space, so every renderer draws the merged surfels as it
+//! draws any others.
+//!
+//! The grid is rotated to one of [`DIRECTION_BUCKETS`] directions nearest each surfel's screen
+//! motion, and its length quantized to quarter octaves of the path, so that neighbours moving
+//! alike fall into the same cells.
+
+use crate::math::Sym2;
+use crate::project::{plane_depth_gradient, Instant, DEPTH_TOLERANCE_SIGMAS};
+use crate::scene::camera::Camera;
+use crate::scene::Object;
+use crate::surfels::Surfel;
+use glam::{DMat3, DVec2, DVec3};
+use rayon::prelude::*;
+
+/// Whether the plan may merge surfels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Lod {
+    /// Full detail: every surfel is drawn.
+    Off,
+    /// Merge where the image cannot show the difference: cells [`ALONG_FRACTION`] of the path
+    /// long; `kernel3d` keeps full detail (see [`LodOutcome::Kernels`]).
+    #[default]
+    Auto,
+    /// Merge with cells this share of the screen path long (for measuring the rule).
+    Along(f64),
+}
+
+impl Lod {
+    /// The share of the screen path a cell spans along the motion, if merging, for `kernel3d`
+    /// (`kernels`) or another method.
+    #[must_use]
+    pub fn along_fraction(self, kernels: bool) -> Option<f64> {
+        match self {
+            Lod::Off => None,
+            Lod::Auto if kernels => None,
+            Lod::Auto => Some(ALONG_FRACTION),
+            Lod::Along(f) => Some(f),
+        }
+    }
+}
+
+/// Share of a surfel's screen path that its cell may span along the motion in `blur` and a hint's
+/// trail (from the sweep in docs/math.md, "Level of detail": on the torus knot, RMSE against the
+/// converged reference +2.3 % and ꟻLIP against full detail 0.008).
+pub const ALONG_FRACTION: f64 = 0.2;
+
+/// The share that suits `kernel3d`, whose error is ten times lower than `blur`'s, so that the same
+/// merging shows: at 0.1 its RMSE doubled on the torus knot, at 0.05 it rose by 17 %. Not on by
+/// default (see [`LodOutcome::Kernels`]); `Lod::Along` asks for it.
+pub const ALONG_FRACTION_KERNELS: f64 = 0.05;
+
+/// Cell width across the motion, and the side of a cell for an instant, px.
+pub const CELL_PX: f64 = 1.0;
+
+/// Longest cell along the motion, px: a merged surfel is a flat ellipse, and a long one would
+/// stand for a patch that is no longer flat.
+pub const MAX_CELL_PX: f64 = 32.0;
+
+/// Screen directions of motion the grid is aligned to.
+const DIRECTION_BUCKETS: f64 = 16.0;
+
+/// Buckets per octave of screen path length.
+const LENGTH_BUCKETS_PER_OCTAVE: f64 = 4.0;
+
+/// Normal buckets per cube-face axis: normals within about 30° may merge.
+const NORMAL_BUCKETS: f64 = 3.0;
+
+/// Without motion, surfels are merged only when they are smaller than this share of a cell (so
+/// that a cell gathers about four): the pass that finds the cells costs about as much as
+/// projecting the surfels, and on the torus knot at 512² (surfels 0.95 px) merging two into one
+/// made `static` 2.2× slower.
+const DISTANCE_MERGE_SHARE: f64 = 0.5;
+
+/// Surfels sampled to decide whether an object has anything to merge.
+const SIZE_PROBES: usize = 256;
+
+/// Most instants a surfel's screen path is measured at.
+pub const MAX_PATH_SAMPLES: usize = 9;
+
+/// What the level of detail did to one object.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LodOutcome {
+    /// `--lod off`.
+    Off,
+    /// Drawn sharp at full detail (a hint's object layer).
+    Sharp,
+    /// A sparse trail: each surfel is a stroke of its own.
+    Strokes,
+    /// `kernel3d` by default: its kernels of merged surfels let 6.5 % of the background through
+    /// the silhouette of a sliding sphere (`tests/opaque.rs` allows 3 %), so it keeps full detail
+    /// until that is understood.
+    Kernels,
+    /// Left at full detail: its surfels cover at least a cell each.
+    Kept {
+        /// Median screen size of its surfels (the square root of their screen area), px.
+        surfel_px: f64,
+    },
+    /// Merged.
+    Merged {
+        /// Surfels before and after.
+        surfels_in: usize,
+        /// Surfels after.
+        surfels_out: usize,
+        /// Whether cells followed the motion (or were square, for an instant).
+        along_motion: bool,
+        /// Longest cell along the motion, px.
+        longest_cell_px: f64,
+    },
+}
+
+impl LodOutcome {
+    /// One line for `--explain`.
+    #[must_use]
+    pub fn explain(&self) -> String {
+        match self {
+            LodOutcome::Off => "level of detail off: full detail".to_string(),
+            LodOutcome::Sharp => "full detail: drawn sharp".to_string(),
+            LodOutcome::Kernels => {
+                "full detail: kernel3d does not merge by default (merged kernels leak at silhouettes)"
+                    .to_string()
+            }
+            LodOutcome::Strokes => {
+                "full detail: a sparse trail draws each surfel as a stroke".to_string()
+            }
+            LodOutcome::Kept { surfel_px } => format!(
+                "full detail: its surfels are {surfel_px:.2} px across, too large to merge"
+            ),
+            LodOutcome::Merged {
+                surfels_in,
+                surfels_out,
+                along_motion: true,
+                longest_cell_px,
+            } => format!(
+                "level of detail: {surfels_in} surfels merged into {surfels_out} ({:.1}×) in cells {CELL_PX} px across the motion and up to {longest_cell_px:.1} px along it",
+                *surfels_in as f64 / (*surfels_out).max(1) as f64
+            ),
+            LodOutcome::Merged {
+                surfels_in,
+                surfels_out,
+                along_motion: false,
+                ..
+            } => format!(
+                "level of detail: {surfels_in} surfels merged into {surfels_out} ({:.1}×) in {CELL_PX} px cells (sub-pixel surfels)",
+                *surfels_in as f64 / (*surfels_out).max(1) as f64
+            ),
+        }
+    }
+}
+
+/// An object's surfels as one render draws them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectLod {
+    /// The merged surfels, or `None` for the object's own.
+    pub merged: Option<Vec<Surfel>>,
+    /// What was done, for `--explain`.
+    pub outcome: LodOutcome,
+}
+
+impl ObjectLod {
+    /// Full detail, by request.
+    pub const OFF: ObjectLod = ObjectLod {
+        merged: None,
+        outcome: LodOutcome::Off,
+    };
+}
+
+/// Merge `object`'s surfels for a render that sees it at the instants `times` (increasing; the
+/// middle one is where cells are laid out). With `motion`, cells follow each surfel's screen path
+/// through the instants; without, they are square (an instant, or the frames of the reference,
+/// each of which is an instant).
+#[must_use]
+pub fn merge(
+    camera: &Camera,
+    object: &Object,
+    times: &[f64],
+    motion: bool,
+    along_fraction: f64,
+) -> ObjectLod {
+    let surfels = object.surfels();
+    let instants: Vec<Instant> = times
+        .iter()
+        .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
+        .collect();
+    let middle = instants.len() / 2;
+    // Cells are laid out at the middle instant but must hold at the nearest: shrink them by the
+    // object's largest growth on screen over the instants.
+    let depth_of_origin = |instant: &Instant| -instant.view_point(DVec3::ZERO).z;
+    let middle_depth = depth_of_origin(&instants[middle]);
+    let nearest = instants
+        .iter()
+        .map(depth_of_origin)
+        .fold(f64::INFINITY, f64::min);
+    let shrink = if nearest > 0.0 && middle_depth > 0.0 {
+        (nearest / middle_depth).min(1.0)
+    } else {
+        1.0
+    };
+    let cell = CELL_PX * shrink;
+
+    let surfel_px = median_surfel_px(camera, &instants[middle], surfels);
+    // Without motion a merge must gather several surfels to pay for the pass that finds it.
+    let worth_merging = if motion {
+        MAX_CELL_PX * shrink
+    } else {
+        DISTANCE_MERGE_SHARE * cell
+    };
+    if surfel_px.is_none_or(|px| px >= worth_merging) {
+        return ObjectLod {
+            merged: None,
+            outcome: LodOutcome::Kept {
+                surfel_px: surfel_px.unwrap_or(f64::INFINITY),
+            },
+        };
+    }
+
+    // The depth layer: the ternary depth test's tolerance for a typical surfel, doubled.
+    let layer = 2.0 * DEPTH_TOLERANCE_SIGMAS * median_sigma(&instants[middle], surfels);
+    let grid = Grid {
+        camera,
+        instants: &instants,
+        middle,
+        cell,
+        longest: MAX_CELL_PX * shrink,
+        layer,
+        motion,
+        along_fraction,
+    };
+    let mut keyed: Vec<(CellKey, u32)> = surfels
+        .par_iter()
+        .enumerate()
+        .map(|(i, s)| (grid.key(s), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    let mut merged = Vec::new();
+    let mut longest_cell_px = 0.0f64;
+    let mut start = 0;
+    while start < keyed.len() {
+        let key = keyed[start].0;
+        let end = start + keyed[start..].partition_point(|(k, _)| *k == key);
+        let group = keyed[start..end].iter().map(|&(_, i)| &surfels[i as usize]);
+        match key {
+            CellKey::Alone => merged.extend(group.copied()),
+            CellKey::Cell { length, .. } => {
+                if end - start > 1 {
+                    longest_cell_px = longest_cell_px.max(grid.cell_length(length));
+                }
+                merge_group(group, end - start, &mut merged);
+            }
+        }
+        start = end;
+    }
+    ObjectLod {
+        outcome: LodOutcome::Merged {
+            surfels_in: surfels.len(),
+            surfels_out: merged.len(),
+            along_motion: motion,
+            longest_cell_px,
+        },
+        merged: Some(merged),
+    }
+}
+
+/// Which group a surfel belongs to. `Alone` surfels (behind the near plane at some instant, or
+/// with non-finite numbers) are kept as they are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum CellKey {
+    Cell {
+        /// Direction bucket of the screen motion ([`DIRECTION_BUCKETS`] for none).
+        direction: u8,
+        /// Length bucket of the screen path.
+        length: i16,
+        /// Cell along and across the (rotated) grid.
+        along: i64,
+        across: i64,
+        /// Depth layer of the surfel's plane at the cell's centre.
+        layer: i64,
+        /// Normal bucket.
+        normal: u8,
+    },
+    Alone,
+}
+
+/// The cells of one object for one render.
+struct Grid<'a> {
+    camera: &'a Camera,
+    instants: &'a [Instant],
+    middle: usize,
+    /// Cell width across the motion (and side of a square cell), px.
+    cell: f64,
+    /// Longest cell along the motion, px.
+    longest: f64,
+    /// Depth layer thickness, scene units.
+    layer: f64,
+    motion: bool,
+    /// Share of the path a cell spans along the motion.
+    along_fraction: f64,
+}
+
+impl Grid<'_> {
+    /// Length of the cells in length bucket `length`, px.
+    fn cell_length(&self, length: i16) -> f64 {
+        let path = self.cell * (f64::from(length) / LENGTH_BUCKETS_PER_OCTAVE).exp2();
+        (self.along_fraction * path).clamp(self.cell, self.longest)
+    }
+
+    fn key(&self, surfel: &Surfel) -> CellKey {
+        let alone = CellKey::Alone;
+        let mut screen = Vec::with_capacity(self.instants.len());
+        for instant in self.instants {
+            let p_view = instant.view_point(surfel.position);
+            match self.camera.project(p_view) {
+                Some((p, _)) if p.is_finite() => screen.push(p),
+                _ => return alone,
+            }
+        }
+        let middle = self.instants[self.middle];
+        let p_view = middle.view_point(surfel.position);
+        let (p, depth) = match self.camera.project(p_view) {
+            Some(v) => v,
+            None => return alone,
+        };
+        let path: f64 = screen.windows(2).map(|w| w[0].distance(w[1])).sum();
+        let (direction, length, frame, along_px) = if self.motion && path >= 2.0 * self.cell {
+            let before = screen[self.middle.saturating_sub(1)];
+            let after = screen[(self.middle + 1).min(screen.len() - 1)];
+            let d = after - before;
+            let turns = d.y.atan2(d.x) / std::f64::consts::TAU;
+            let bucket = (turns * DIRECTION_BUCKETS)
+                .round()
+                .rem_euclid(DIRECTION_BUCKETS);
+            let angle = bucket / DIRECTION_BUCKETS * std::f64::consts::TAU;
+            let length = ((path / self.cell).log2() * LENGTH_BUCKETS_PER_OCTAVE).floor();
+            let length = length.clamp(0.0, f64::from(i16::MAX)) as i16;
+            let axis = DVec2::from_angle(angle);
+            (bucket as u8, length, axis, self.cell_length(length))
+        } else {
+            (DIRECTION_BUCKETS as u8, 0, DVec2::X, self.cell)
+        };
+        let (u, v) = (p.dot(frame), p.perp_dot(frame));
+        let (along, across) = ((u / along_px).floor(), (v / self.cell).floor());
+        // The plane's depth at the cell's centre: one surface's surfels agree there, whatever
+        // its slope; another surface behind it does not.
+        let centre =
+            frame * ((along + 0.5) * along_px) - frame.perp() * ((across + 0.5) * self.cell);
+        let normal_view = middle.view_vector(surfel.normal);
+        let gradient = plane_depth_gradient(self.camera, p_view, normal_view, depth, self.layer);
+        let at_centre = depth + gradient.dot(DVec2::new(centre.x - p.x, centre.y - p.y));
+        let layer = (at_centre / self.layer).floor();
+        if !(along.is_finite() && across.is_finite() && layer.is_finite()) {
+            return alone;
+        }
+        let cap = |x: f64| x.clamp(-9e15, 9e15) as i64;
+        CellKey::Cell {
+            direction,
+            length,
+            along: cap(along),
+            across: cap(across),
+            layer: cap(layer),
+            normal: normal_bucket(surfel.normal),
+        }
+    }
+}
+
+/// A bucket of unit normals: the cube face the normal points to and a cell of that face.
+fn normal_bucket(n: DVec3) -> u8 {
+    let a = n.abs();
+    let (face, u, v, m) = if a.x >= a.y && a.x >= a.z {
+        (u8::from(n.x < 0.0), n.y, n.z, a.x)
+    } else if a.y >= a.z {
+        (2 + u8::from(n.y < 0.0), n.x, n.z, a.y)
+    } else {
+        (4 + u8::from(n.z < 0.0), n.x, n.y, a.z)
+    };
+    if !(m > 0.0) {
+        return 255;
+    }
+    let cell =
+        |c: f64| ((c / m + 1.0) * 0.5 * NORMAL_BUCKETS).clamp(0.0, NORMAL_BUCKETS - 1.0) as u8;
+    face * 16 + cell(u) * 4 + cell(v)
+}
+
+/// Median screen size (√ of the screen area of a facing surfel) over a sample of surfels, or
+/// `None` when none is in front of the camera.
+fn median_surfel_px(camera: &Camera, instant: &Instant, surfels: &[Surfel]) -> Option<f64> {
+    let step = (surfels.len() / SIZE_PROBES).max(1);
+    let mut sizes: Vec<f64> = surfels
+        .iter()
+        .step_by(step)
+        .filter_map(|s| {
+            let p_view = instant.view_point(s.position);
+            let (_, depth) = camera.project(p_view)?;
+            let scale = instant.view_vector(DVec3::X).length();
+            Some(s.area.sqrt() * scale * camera.focal_px / depth)
+        })
+        .collect();
+    sizes.sort_by(f64::total_cmp);
+    sizes.get(sizes.len() / 2).copied()
+}
+
+/// Median standard deviation of the surfels' Gaussians in scene units.
+fn median_sigma(instant: &Instant, surfels: &[Surfel]) -> f64 {
+    let step = (surfels.len() / SIZE_PROBES).max(1);
+    let scale = instant.view_vector(DVec3::X).length();
+    let mut sigmas: Vec<f64> = surfels
+        .iter()
+        .step_by(step)
+        .map(|s| s.axis_u.length().max(s.axis_v.length()) * scale)
+        .collect();
+    sigmas.sort_by(f64::total_cmp);
+    sigmas.get(sigmas.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Append the merge of `group` (`count` surfels) to `out`: one surfel with the group's area, its
+/// area-weighted mean position, normal and colour, and the Gaussian whose covariance in the plane
+/// of the mean normal is the group's (each member's own plus the spread of the members' centres
+/// about the mean). A group whose normals cancel is kept as it is.
+fn merge_group<'s>(
+    group: impl Iterator<Item = &'s Surfel> + Clone,
+    count: usize,
+    out: &mut Vec<Surfel>,
+) {
+    if count == 1 {
+        out.extend(group);
+        return;
+    }
+    let area: f64 = group.clone().map(|s| s.area).sum();
+    let mean = |f: &dyn Fn(&Surfel) -> DVec3| {
+        group
+            .clone()
+            .fold(DVec3::ZERO, |sum, s| sum + f(s) * s.area)
+            / area
+    };
+    let position = mean(&|s| s.position);
+    let normal = mean(&|s| s.normal).normalize_or_zero();
+    let colour = mean(&|s| DVec3::from_array(s.colour.map(f64::from)));
+    if !(area > 0.0 && normal != DVec3::ZERO && position.is_finite()) {
+        out.extend(group);
+        return;
+    }
+    let outer = |v: DVec3| DMat3::from_cols(v * v.x, v * v.y, v * v.z);
+    let covariance = group.clone().fold(DMat3::ZERO, |sum, s| {
+        let d = s.position - position;
+        sum + (outer(s.axis_u) + outer(s.axis_v) + outer(d)) * s.area
+    }) * (1.0 / area);
+    let (t1, t2) = normal.any_orthonormal_pair();
+    let in_plane = Sym2 {
+        xx: t1.dot(covariance * t1),
+        xy: t1.dot(covariance * t2),
+        yy: t2.dot(covariance * t2),
+    };
+    let (values, vectors) = in_plane.eigen();
+    let axis = |k: usize| (t1 * vectors[k].x + t2 * vectors[k].y) * values[k].max(0.0).sqrt();
+    let (axis_u, axis_v) = (axis(0), axis(1));
+    if !(axis_u.cross(axis_v).length() > 0.0) {
+        out.extend(group);
+        return;
+    }
+    out.push(Surfel {
+        position,
+        normal,
+        axis_u,
+        axis_v,
+        area,
+        colour: colour.to_array().map(|c| c as f32),
+    });
+}

@@ -1,0 +1,161 @@
+//! The level of detail (`streak::lod`): merged surfels keep the energy, keep edges across the
+//! motion, blur away only detail the shutter erases, and leave alone what they cannot help.
+
+mod common;
+
+use common::*;
+use glam::DVec3;
+use streak::lod::{Lod, LodOutcome, ALONG_FRACTION_KERNELS};
+use streak::render::{Subframes, Visibility};
+use streak::surfels::Surfel;
+use streak::{Framebuffer, Method, Plan, Scene};
+
+/// `kernel3d` keeps full detail by default; these tests ask it to merge at its own share.
+fn merging(method: &Method) -> Lod {
+    match method {
+        Method::Kernel3d { .. } => Lod::Along(ALONG_FRACTION_KERNELS),
+        _ => Lod::Auto,
+    }
+}
+
+fn draw_with(scene: &Scene, method: &Method, lod: Lod) -> (Framebuffer, LodOutcome) {
+    let plan = Plan::with_lod(scene, method, lod).unwrap();
+    let outcome = plan.objects[0].lod.outcome.clone();
+    (plan.render(None).image, outcome)
+}
+
+fn merged_by(outcome: &LodOutcome) -> f64 {
+    match outcome {
+        LodOutcome::Merged {
+            surfels_in,
+            surfels_out,
+            ..
+        } => *surfels_in as f64 / *surfels_out as f64,
+        other => panic!("expected a merge, got {other:?}"),
+    }
+}
+
+/// A patch `size` units wide, its surfels `spacing` apart, in squares of `square` × `square`
+/// units, red and blue.
+fn checkerboard(size: [f64; 2], spacing: f64, square: f64) -> Vec<Surfel> {
+    let mut surfels = patch(DVec3::ZERO, size, spacing, false);
+    for s in &mut surfels {
+        let cell = (s.position.x / square).floor() + (s.position.y / square).floor();
+        s.colour = if cell.rem_euclid(2.0) < 1.0 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [0.0, 0.0, 1.0]
+        };
+    }
+    surfels
+}
+
+const KERNEL3D: Method = Method::Kernel3d {
+    subframes: Subframes::Equal(4),
+    visibility: Visibility::Exact,
+};
+
+#[test]
+fn merging_keeps_a_blurred_objects_energy() {
+    // Sub-pixel surfels (0.45 px apart) sliding 90 px: both rules merge them.
+    let surfels = patch(DVec3::ZERO, [2.0, 1.0], 0.02, false);
+    let scene = scene(
+        camera(200, 120),
+        vec![object(
+            surfels,
+            linear(DVec3::new(-2.0, 0.0, 0.0), DVec3::new(2.0, 0.0, 0.0)),
+        )],
+    );
+    for method in [Method::BLUR, KERNEL3D] {
+        let (full, _) = draw_with(&scene, &method, Lod::Off);
+        let (merged, outcome) = draw_with(&scene, &method, merging(&method));
+        assert!(merged_by(&outcome) > 4.0, "{}: {outcome:?}", method.name());
+        let (e_full, e_merged) = (energy(&full), energy(&merged));
+        assert!(
+            (e_merged / e_full - 1.0).abs() < 0.01,
+            "{}: {e_merged} vs {e_full}",
+            method.name()
+        );
+    }
+}
+
+#[test]
+fn edges_along_the_motion_stay_sharp_and_detail_along_it_blurs_as_it_would() {
+    let camera = camera(200, 120);
+    let slide = |surfels, distance: f64| {
+        scene(
+            camera.clone(),
+            vec![object(
+                surfels,
+                linear(
+                    DVec3::new(-distance / 2.0, 0.0, 0.0),
+                    DVec3::new(distance / 2.0, 0.0, 0.0),
+                ),
+            )],
+        )
+    };
+    // Squares of 1 unit (22 px) sliding half a unit (11 px): longer than the streak. Their edges
+    // along the motion (rows where red meets blue) are where a merge across the motion would show.
+    let coarse = slide(checkerboard([3.0, 2.0], 0.02, 1.0), 0.5);
+    let edge_row = (0.5 * f64::from(camera.height)) as usize;
+    for method in [Method::BLUR, KERNEL3D] {
+        let (full, _) = draw_with(&coarse, &method, Lod::Off);
+        let (merged, outcome) = draw_with(&coarse, &method, merging(&method));
+        assert!(merged_by(&outcome) > 2.0, "{outcome:?}");
+        let worst = (edge_row - 3..edge_row + 3)
+            .flat_map(|y| (60..140).map(move |x| y * 200 + x))
+            .flat_map(|i| (0..3).map(move |c| (i, c)))
+            .map(|(i, c)| (full.pixels[i][c] - merged.pixels[i][c]).abs())
+            .fold(0.0f32, f32::max);
+        // A cell 1 px across moves an edge's samples by at most a third of a pixel's ramp; a
+        // merge reaching a few pixels across would smear it by tenths.
+        assert!(worst < 0.05, "{}: {worst}", method.name());
+    }
+    // Squares of 0.1 unit (2.2 px) sliding 4 units (90 px): along the motion they are averaged
+    // away, and merging along it must not change what is left.
+    let fine = slide(checkerboard([2.0, 1.0], 0.02, 0.1), 4.0);
+    for method in [Method::BLUR, KERNEL3D] {
+        let (full, _) = draw_with(&fine, &method, Lod::Off);
+        let (merged, outcome) = draw_with(&fine, &method, merging(&method));
+        assert!(merged_by(&outcome) > 4.0, "{outcome:?}");
+        let error = rmse(&merged, &full);
+        assert!(error < 0.01, "{}: RMSE {error}", method.name());
+    }
+}
+
+#[test]
+fn objects_whose_surfels_cover_a_pixel_are_drawn_at_full_detail() {
+    // 0.1 units apart: 2.2 px.
+    let still_patch = scene(
+        camera(160, 120),
+        vec![object(patch(DVec3::ZERO, [2.0, 1.0], 0.1, false), still())],
+    );
+    for method in [
+        Method::STATIC,
+        Method::Reference { samples: 4 },
+        Method::BLUR,
+        KERNEL3D,
+    ] {
+        let (full, _) = draw_with(&still_patch, &method, Lod::Off);
+        let (auto, outcome) = draw_with(&still_patch, &method, merging(&method));
+        assert!(
+            matches!(outcome, LodOutcome::Kept { surfel_px } if surfel_px > 2.0),
+            "{outcome:?}"
+        );
+        assert_eq!(full.pixels, auto.pixels, "{}", method.name());
+    }
+}
+
+#[test]
+fn sub_pixel_surfels_of_an_instant_merge_within_a_pixel() {
+    // 0.005 units apart: 0.11 px, about eighty surfels per pixel.
+    let far = scene(
+        camera(160, 120),
+        vec![object(checkerboard([2.0, 1.0], 0.005, 0.25), still())],
+    );
+    let (full, _) = draw_with(&far, &Method::STATIC, Lod::Off);
+    let (merged, outcome) = draw_with(&far, &Method::STATIC, Lod::Auto);
+    assert!(merged_by(&outcome) > 20.0, "{outcome:?}");
+    let error = rmse(&merged, &full);
+    assert!(error < 0.01, "RMSE {error}");
+}
