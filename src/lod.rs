@@ -210,14 +210,21 @@ pub fn merge(
     };
     let cell = CELL_PX * shrink;
 
-    let surfel_px = median_surfel_px(camera, &instants[middle], surfels);
-    // Without motion a merge must gather several surfels to pay for the pass that finds it.
-    let worth_merging = if motion {
-        MAX_CELL_PX * shrink
-    } else {
-        DISTANCE_MERGE_SHARE * cell
-    };
-    if surfel_px.is_none_or(|px| px >= worth_merging) {
+    let probes = probe_sizes(camera, &instants, middle, surfels);
+    // A merge must gather several surfels to pay for the pass that finds it: the median surfel
+    // must be under a share of a typical cell's side (the geometric mean of its length and
+    // width). Below two cells of motion, cells are square as for an instant, so a barely moving
+    // object is merged exactly as a still one.
+    let worth_merging = probes.map(|probes| {
+        let along = if motion && probes.path_px >= 2.0 * cell {
+            (along_fraction * probes.path_px).clamp(cell, MAX_CELL_PX * shrink)
+        } else {
+            cell
+        };
+        DISTANCE_MERGE_SHARE * (cell * along).sqrt()
+    });
+    let surfel_px = probes.map(|probes| probes.surfel_px);
+    if !matches!((surfel_px, worth_merging), (Some(px), Some(worth)) if px < worth) {
         return ObjectLod {
             merged: None,
             outcome: LodOutcome::Kept {
@@ -392,22 +399,47 @@ fn normal_bucket(n: DVec3) -> u8 {
     face * 16 + cell(u) * 4 + cell(v)
 }
 
-/// Median screen size (√ of the screen area of a facing surfel) over a sample of surfels, or
-/// `None` when none is in front of the camera.
-fn median_surfel_px(camera: &Camera, instant: &Instant, surfels: &[Surfel]) -> Option<f64> {
+/// Typical screen sizes of an object's surfels, from a sample of them.
+#[derive(Clone, Copy)]
+struct Probes {
+    /// Median screen size (√ of the screen area of a facing surfel) at the middle instant, px.
+    surfel_px: f64,
+    /// Median screen path through the instants, px.
+    path_px: f64,
+}
+
+/// The [`Probes`] of `surfels` seen at `instants`, or `None` when none is in front of the camera
+/// at every instant.
+fn probe_sizes(
+    camera: &Camera,
+    instants: &[Instant],
+    middle: usize,
+    surfels: &[Surfel],
+) -> Option<Probes> {
     let step = (surfels.len() / SIZE_PROBES).max(1);
-    let mut sizes: Vec<f64> = surfels
+    let scale = instants[middle].view_vector(DVec3::X).length();
+    let screen = |instant: &Instant, s: &Surfel| camera.project(instant.view_point(s.position));
+    let (mut sizes, mut paths): (Vec<f64>, Vec<f64>) = surfels
         .iter()
         .step_by(step)
         .filter_map(|s| {
-            let p_view = instant.view_point(s.position);
-            let (_, depth) = camera.project(p_view)?;
-            let scale = instant.view_vector(DVec3::X).length();
-            Some(s.area.sqrt() * scale * camera.focal_px / depth)
+            let (_, depth) = screen(&instants[middle], s)?;
+            let points: Option<Vec<DVec2>> = instants
+                .iter()
+                .map(|i| screen(i, s).map(|(p, _)| p))
+                .collect();
+            let path: f64 = points?.windows(2).map(|w| w[0].distance(w[1])).sum();
+            Some((s.area.sqrt() * scale * camera.focal_px / depth, path))
         })
-        .collect();
-    sizes.sort_by(f64::total_cmp);
-    sizes.get(sizes.len() / 2).copied()
+        .unzip();
+    let median = |values: &mut Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        values.get(values.len() / 2).copied()
+    };
+    Some(Probes {
+        surfel_px: median(&mut sizes)?,
+        path_px: median(&mut paths)?,
+    })
 }
 
 /// Median standard deviation of the surfels' Gaussians in scene units.
