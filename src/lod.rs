@@ -31,7 +31,7 @@ pub enum Lod {
     /// Full detail: every surfel is drawn.
     Off,
     /// Merge where the image cannot show the difference: cells [`ALONG_FRACTION`] of the path
-    /// long; `kernel3d` keeps full detail (see [`LodOutcome::Kernels`]).
+    /// long; `kernel3d` merges only sub-pixel surfels, in square cells (see [`Cells::Square`]).
     #[default]
     Auto,
     /// Merge with cells this share of the screen path long (for measuring the rule).
@@ -39,17 +39,29 @@ pub enum Lod {
 }
 
 impl Lod {
-    /// The share of the screen path a cell spans along the motion, if merging, for `kernel3d`
-    /// (`kernels`) or another method.
+    /// The cells an object drawn blurred is merged in, if any, for `kernel3d` (`kernels`) or
+    /// another method.
     #[must_use]
-    pub fn along_fraction(self, kernels: bool) -> Option<f64> {
+    pub fn blurred_cells(self, kernels: bool) -> Option<Cells> {
         match self {
             Lod::Off => None,
-            Lod::Auto if kernels => None,
-            Lod::Auto => Some(ALONG_FRACTION),
-            Lod::Along(f) => Some(f),
+            Lod::Auto if kernels => Some(Cells::Square),
+            Lod::Auto => Some(Cells::AlongMotion(ALONG_FRACTION)),
+            Lod::Along(f) => Some(Cells::AlongMotion(f)),
         }
     }
+}
+
+/// The shape of the cells surfels are merged in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Cells {
+    /// [`CELL_PX`] squares: what an instant cannot resolve (`static`, each reference frame, still
+    /// objects), and all `kernel3d` merges by default: its kernels of surfels merged along the
+    /// motion let 6.5 % of the background through the silhouette of a sliding sphere
+    /// (`tests/opaque.rs` allows 3 %).
+    Square,
+    /// [`CELL_PX`] across the motion and this share of each surfel's screen path along it.
+    AlongMotion(f64),
 }
 
 /// Share of a surfel's screen path that its cell may span along the motion in `blur` and a hint's
@@ -59,7 +71,7 @@ pub const ALONG_FRACTION: f64 = 0.2;
 
 /// The share that suits `kernel3d`, whose error is ten times lower than `blur`'s, so that the same
 /// merging shows: at 0.1 its RMSE doubled on the torus knot, at 0.05 it rose by 17 %. Not on by
-/// default (see [`LodOutcome::Kernels`]); `Lod::Along` asks for it.
+/// default (see [`Cells::Square`]); `Lod::Along` asks for it.
 pub const ALONG_FRACTION_KERNELS: f64 = 0.05;
 
 /// Cell width across the motion, and the side of a cell for an instant, px.
@@ -99,10 +111,6 @@ pub enum LodOutcome {
     Sharp,
     /// A sparse trail: each surfel is a stroke of its own.
     Strokes,
-    /// `kernel3d` by default: its kernels of merged surfels let 6.5 % of the background through
-    /// the silhouette of a sliding sphere (`tests/opaque.rs` allows 3 %), so it keeps full detail
-    /// until that is understood.
-    Kernels,
     /// Left at full detail: its surfels cover at least a cell each.
     Kept {
         /// Median screen size of its surfels (the square root of their screen area), px.
@@ -128,10 +136,6 @@ impl LodOutcome {
         match self {
             LodOutcome::Off => "level of detail off: full detail".to_string(),
             LodOutcome::Sharp => "full detail: drawn sharp".to_string(),
-            LodOutcome::Kernels => {
-                "full detail: kernel3d does not merge by default (merged kernels leak at silhouettes)"
-                    .to_string()
-            }
             LodOutcome::Strokes => {
                 "full detail: a sparse trail draws each surfel as a stroke".to_string()
             }
@@ -178,17 +182,10 @@ impl ObjectLod {
 }
 
 /// Merge `object`'s surfels for a render that sees it at the instants `times` (increasing; the
-/// middle one is where cells are laid out). With `motion`, cells follow each surfel's screen path
-/// through the instants; without, they are square (an instant, or the frames of the reference,
-/// each of which is an instant).
+/// middle one is where cells are laid out), in `cells`: along the motion they follow each surfel's
+/// screen path through the instants.
 #[must_use]
-pub fn merge(
-    camera: &Camera,
-    object: &Object,
-    times: &[f64],
-    motion: bool,
-    along_fraction: f64,
-) -> ObjectLod {
+pub fn merge(camera: &Camera, object: &Object, times: &[f64], cells: Cells) -> ObjectLod {
     let surfels = object.surfels();
     let instants: Vec<Instant> = times
         .iter()
@@ -215,11 +212,16 @@ pub fn merge(
     // must be under a share of a typical cell's side (the geometric mean of its length and
     // width). Below two cells of motion, cells are square as for an instant, so a barely moving
     // object is merged exactly as a still one.
+    let along_fraction = match cells {
+        Cells::AlongMotion(share) => Some(share),
+        Cells::Square => None,
+    };
     let worth_merging = probes.map(|probes| {
-        let along = if motion && probes.path_px >= 2.0 * cell {
-            (along_fraction * probes.path_px).clamp(cell, MAX_CELL_PX * shrink)
-        } else {
-            cell
+        let along = match along_fraction {
+            Some(share) if probes.path_px >= 2.0 * cell => {
+                (share * probes.path_px).clamp(cell, MAX_CELL_PX * shrink)
+            }
+            _ => cell,
         };
         DISTANCE_MERGE_SHARE * (cell * along).sqrt()
     });
@@ -242,7 +244,6 @@ pub fn merge(
         cell,
         longest: MAX_CELL_PX * shrink,
         layer,
-        motion,
         along_fraction,
     };
     let mut keyed: Vec<(CellKey, u32)> = surfels
@@ -273,7 +274,7 @@ pub fn merge(
         outcome: LodOutcome::Merged {
             surfels_in: surfels.len(),
             surfels_out: merged.len(),
-            along_motion: motion,
+            along_motion: along_fraction.is_some(),
             longest_cell_px,
         },
         merged: Some(merged),
@@ -311,16 +312,15 @@ struct Grid<'a> {
     longest: f64,
     /// Depth layer thickness, scene units.
     layer: f64,
-    motion: bool,
-    /// Share of the path a cell spans along the motion.
-    along_fraction: f64,
+    /// Share of the path a cell spans along the motion, or `None` for square cells.
+    along_fraction: Option<f64>,
 }
 
 impl Grid<'_> {
     /// Length of the cells in length bucket `length`, px.
     fn cell_length(&self, length: i16) -> f64 {
         let path = self.cell * (f64::from(length) / LENGTH_BUCKETS_PER_OCTAVE).exp2();
-        (self.along_fraction * path).clamp(self.cell, self.longest)
+        (self.along_fraction.unwrap_or(0.0) * path).clamp(self.cell, self.longest)
     }
 
     fn key(&self, surfel: &Surfel) -> CellKey {
@@ -340,22 +340,23 @@ impl Grid<'_> {
             None => return alone,
         };
         let path: f64 = screen.windows(2).map(|w| w[0].distance(w[1])).sum();
-        let (direction, length, frame, along_px) = if self.motion && path >= 2.0 * self.cell {
-            let before = screen[self.middle.saturating_sub(1)];
-            let after = screen[(self.middle + 1).min(screen.len() - 1)];
-            let d = after - before;
-            let turns = d.y.atan2(d.x) / std::f64::consts::TAU;
-            let bucket = (turns * DIRECTION_BUCKETS)
-                .round()
-                .rem_euclid(DIRECTION_BUCKETS);
-            let angle = bucket / DIRECTION_BUCKETS * std::f64::consts::TAU;
-            let length = ((path / self.cell).log2() * LENGTH_BUCKETS_PER_OCTAVE).floor();
-            let length = length.clamp(0.0, f64::from(i16::MAX)) as i16;
-            let axis = DVec2::from_angle(angle);
-            (bucket as u8, length, axis, self.cell_length(length))
-        } else {
-            (DIRECTION_BUCKETS as u8, 0, DVec2::X, self.cell)
-        };
+        let (direction, length, frame, along_px) =
+            if self.along_fraction.is_some() && path >= 2.0 * self.cell {
+                let before = screen[self.middle.saturating_sub(1)];
+                let after = screen[(self.middle + 1).min(screen.len() - 1)];
+                let d = after - before;
+                let turns = d.y.atan2(d.x) / std::f64::consts::TAU;
+                let bucket = (turns * DIRECTION_BUCKETS)
+                    .round()
+                    .rem_euclid(DIRECTION_BUCKETS);
+                let angle = bucket / DIRECTION_BUCKETS * std::f64::consts::TAU;
+                let length = ((path / self.cell).log2() * LENGTH_BUCKETS_PER_OCTAVE).floor();
+                let length = length.clamp(0.0, f64::from(i16::MAX)) as i16;
+                let axis = DVec2::from_angle(angle);
+                (bucket as u8, length, axis, self.cell_length(length))
+            } else {
+                (DIRECTION_BUCKETS as u8, 0, DVec2::X, self.cell)
+            };
         let (u, v) = (p.dot(frame), p.perp_dot(frame));
         let (along, across) = ((u / along_px).floor(), (v / self.cell).floor());
         // The plane's depth at the cell's centre: one surface's surfels agree there, whatever

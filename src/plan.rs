@@ -8,7 +8,7 @@
 //! docs/math.md, "Sub-segment planning".
 
 use crate::error::Result;
-use crate::lod::{self, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
+use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
 use crate::render::{render_planned, trail_window, Method, Progress, Render};
 use crate::scene::camera::Camera;
@@ -159,13 +159,9 @@ impl<'a> Plan<'a> {
                     ObjectMotion::Still
                 };
                 let kernels = matches!(method, Method::Kernel3d { .. });
-                let lod = match lod.along_fraction(kernels) {
-                    None if kernels && lod == Lod::Auto => ObjectLod {
-                        merged: None,
-                        outcome: LodOutcome::Kernels,
-                    },
+                let lod = match lod.blurred_cells(kernels) {
                     None => ObjectLod::OFF,
-                    Some(along) => object_lod(scene, object, &motion, method, along),
+                    Some(cells) => object_lod(scene, object, &motion, method, cells),
                 };
                 ObjectPlan {
                     name: object.name.clone(),
@@ -290,21 +286,21 @@ impl<'a> Plan<'a> {
 
 /// The level of detail of one object for `method`: merged in square cells at each instant the
 /// method draws (`static`, the reference's frames, and still objects), along the motion for
-/// what is drawn blurred (`blur`, `kernel3d`, a hint's trail); a hint's object layer, drawn sharp,
-/// keeps full detail.
+/// what is drawn blurred (`blur`, `kernel3d`, a hint's trail) in `blurred` cells; a hint's object
+/// layer, drawn sharp, keeps full detail.
 fn object_lod(
     scene: &Scene,
     object: &Object,
     motion: &ObjectMotion,
     method: &Method,
-    along: f64,
+    blurred: Cells,
 ) -> ObjectLod {
     let (open, close) = (scene.shutter.open, scene.shutter.close);
     let middle = scene.shutter.middle();
     let camera = &scene.camera;
     match (method, motion) {
         (Method::Static { time }, _) => {
-            lod::merge(camera, object, &[time.unwrap_or(middle)], false, along)
+            lod::merge(camera, object, &[time.unwrap_or(middle)], Cells::Square)
         }
         (Method::Hint { .. }, ObjectMotion::Still) => ObjectLod {
             merged: None,
@@ -323,18 +319,21 @@ fn object_lod(
             let [start, end] = trail_window(&scene.shutter, style);
             let copy = trail.duty / f64::from(trail.copies.max(1));
             let times = path_times(segments, [start, end]);
-            lod::merge(camera, object, &times, true, along * copy)
+            let cells = match blurred {
+                Cells::AlongMotion(share) => Cells::AlongMotion(share * copy),
+                Cells::Square => Cells::Square,
+            };
+            lod::merge(camera, object, &times, cells)
         }
-        (_, ObjectMotion::Still) => lod::merge(camera, object, &[middle], false, along),
+        (_, ObjectMotion::Still) => lod::merge(camera, object, &[middle], Cells::Square),
         (Method::Reference { .. }, ObjectMotion::Moving { .. }) => {
-            lod::merge(camera, object, &[open, middle, close], false, along)
+            lod::merge(camera, object, &[open, middle, close], Cells::Square)
         }
         (_, ObjectMotion::Moving { segments, .. }) => lod::merge(
             camera,
             object,
             &path_times(segments, [open, close]),
-            true,
-            along,
+            blurred,
         ),
     }
 }
