@@ -182,3 +182,40 @@ fn a_square_turning_through_edge_on_draws_the_sliver_it_shows() {
         "kernel3d {kernels} against the reference's {reference}"
     );
 }
+
+#[test]
+fn hidden_tubes_do_not_show_through_a_knot_seen_from_afar() {
+    // A still torus knot coloured by its normals, 160×120 px: a pixel is as wide as the tube's
+    // radius. Splats along a hidden tube's silhouette are seen nearly edge-on; their planes'
+    // depths, extrapolated over the pre-filter's reach, once landed metres in front of and
+    // behind the knot, between the surfaces, and a surface's chain of fragments took on their
+    // large tolerances and stepped through to the tubes behind: light lines along each hidden
+    // silhouette, RMSE 0.0161 against `static` (linear). Depths kept within each disc's own
+    // range and the chain keeping its smaller tolerance: 0.0059 (either alone: 0.0151, 0.0142).
+    // What is left lies where silhouettes cross.
+    let camera = streak::scene::Camera::new(
+        DVec3::new(0.0, 0.0, 4.2),
+        DVec3::ZERO,
+        DVec3::Y,
+        34.0,
+        160,
+        120,
+    )
+    .unwrap();
+    let mut surfels = streak::surfels::torus_knot(2, 3, 0.3, 0.11, 0.0048).unwrap();
+    for s in &mut surfels {
+        s.colour = (s.normal * 0.5 + 0.5).as_vec3().to_array();
+    }
+    let scene = scene(camera, vec![object(surfels, still())]);
+    let full_detail = |method: &Method| {
+        streak::Plan::with_lod(&scene, method, streak::lod::Lod::Off)
+            .unwrap()
+            .render(None)
+            .image
+    };
+    let error = rmse(
+        &full_detail(&Method::KERNEL3D),
+        &full_detail(&Method::STATIC),
+    );
+    assert!(error < 0.008, "kernel3d against static: {error}");
+}

@@ -260,7 +260,10 @@ fn one_surface(fragments: &[Fragment]) -> bool {
 
 /// The end of the surface that starts at `active[start]`: each following fragment within the
 /// depth tolerance of the deepest one before it (the ternary depth test, chained, as the
-/// compositor of footprints does: raster/composite.rs).
+/// compositor of footprints does: raster/composite.rs). Unlike there, the chain keeps the smaller
+/// tolerance as it steps on: fragments come here in their depth order at the pixel, where a splat
+/// seen nearly edge-on, whose depth is uncertain by its large tolerance, falls between the
+/// surfaces; taking on its tolerance let one surface's chain step through to the next.
 fn same_surface_end(active: &[(f64, usize)], start: usize, fragments: &[Fragment]) -> usize {
     let Some(&(front, first)) = active.get(start) else {
         return start;
@@ -273,7 +276,7 @@ fn same_surface_end(active: &[(f64, usize)], start: usize, fragments: &[Fragment
             break;
         }
         if depth > deepest && depth - deepest <= tolerance.min(own) {
-            (deepest, tolerance) = (depth, own);
+            (deepest, tolerance) = (depth, tolerance.min(own));
         }
         end += 1;
     }

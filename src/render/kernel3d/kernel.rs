@@ -75,6 +75,10 @@ pub(super) struct AffineKernel {
     /// Screen gradient of the splat plane's depth, per px: splats of one oblique surface meet a
     /// pixel at one depth, not at their centres' depths.
     depth_gradient: DVec2,
+    /// How far the splat's cut-off disc reaches from its centre: no ray meets the disc farther
+    /// from the centre's depth, so the plane's depth at a pixel is not taken beyond it (past the
+    /// disc only the pre-filter carries the footprint).
+    depth_reach: f64,
 }
 
 impl AffineKernel {
@@ -144,7 +148,15 @@ impl Kernel {
             let normal = axes[0].cross(axes[1]);
             let reach = CUTOFF_SIGMAS * axes[0].length().max(axes[1].length());
             let gradient = plane_depth_gradient(camera, centre, normal, depth, reach);
-            Some(affine_kernel(camera, p0, p1, [m1, m2], density, gradient)?)
+            Some(affine_kernel(
+                camera,
+                p0,
+                p1,
+                [m1, m2],
+                density,
+                gradient,
+                reach,
+            )?)
         } else {
             None
         };
@@ -276,8 +288,12 @@ impl Prepared<'_> {
                     c: form(d, d),
                 };
                 // The plane's depth at the pixel; as for EWA footprints (project.rs) it moves
-                // across the pre-filter's reach, which the ternary test must allow.
-                let offset = affine.depth_gradient.dot(d);
+                // across the pre-filter's reach, which the ternary test must allow, but it is
+                // taken no farther than the disc's own depth range. A splat seen nearly edge-on
+                // has a steep plane: unbounded, its depth a pixel away landed metres in front of
+                // or behind the surface, between other surfaces.
+                let limit = affine.depth_reach;
+                let offset = affine.depth_gradient.dot(d).clamp(-limit, limit);
                 let reach = CUTOFF_SIGMAS * PREFILTER_VARIANCE_PX2.sqrt();
                 let tolerance = k.tolerance + affine.depth_gradient.length() * reach;
                 (
@@ -360,6 +376,7 @@ fn affine_kernel(
     [m1, m2]: [DVec2; 2],
     density: f64,
     depth_gradient: DVec2,
+    depth_reach: f64,
 ) -> Option<AffineKernel> {
     let (s0, d0) = camera.project(p0)?;
     let (s1, d1) = camera.project(p1)?;
@@ -382,6 +399,7 @@ fn affine_kernel(
         depth: 0.5 * (d0 + d1),
         half_depth_change: 0.5 * (d1 - d0),
         depth_gradient,
+        depth_reach,
     };
     (det > 0.0 && affine.amplitude.is_finite()).then_some(affine)
 }
