@@ -207,34 +207,6 @@ pub fn merge(camera: &Camera, object: &Object, times: &[f64], cells: Cells) -> O
     };
     let cell = CELL_PX * shrink;
 
-    let probes = probe_sizes(camera, &instants, middle, surfels);
-    // A merge must gather several surfels to pay for the pass that finds it: the median surfel
-    // must be under a share of a typical cell's side (the geometric mean of its length and
-    // width). Below two cells of motion, cells are square as for an instant, so a barely moving
-    // object is merged exactly as a still one.
-    let along_fraction = match cells {
-        Cells::AlongMotion(share) => Some(share),
-        Cells::Square => None,
-    };
-    let worth_merging = probes.map(|probes| {
-        let along = match along_fraction {
-            Some(share) if probes.path_px >= 2.0 * cell => {
-                (share * probes.path_px).clamp(cell, MAX_CELL_PX * shrink)
-            }
-            _ => cell,
-        };
-        DISTANCE_MERGE_SHARE * (cell * along).sqrt()
-    });
-    let surfel_px = probes.map(|probes| probes.surfel_px);
-    if !matches!((surfel_px, worth_merging), (Some(px), Some(worth)) if px < worth) {
-        return ObjectLod {
-            merged: None,
-            outcome: LodOutcome::Kept {
-                surfel_px: surfel_px.unwrap_or(f64::INFINITY),
-            },
-        };
-    }
-
     // The depth layer: the ternary depth test's tolerance for a typical surfel, doubled.
     let layer = 2.0 * DEPTH_TOLERANCE_SIGMAS * median_sigma(&instants[middle], surfels);
     let grid = Grid {
@@ -244,8 +216,28 @@ pub fn merge(camera: &Camera, object: &Object, times: &[f64], cells: Cells) -> O
         cell,
         longest: MAX_CELL_PX * shrink,
         layer,
-        along_fraction,
+        along_fraction: match cells {
+            Cells::AlongMotion(share) => Some(share),
+            Cells::Square => None,
+        },
     };
+    // A merge must gather several surfels to pay for the pass that finds it: the median surfel
+    // must be under a share of a typical cell's side (the geometric mean of its length and
+    // width).
+    match probe_sizes(camera, &instants, middle, surfels) {
+        Some(probes)
+            if probes.surfel_px
+                < DISTANCE_MERGE_SHARE * (cell * grid.cell_length(probes.path_px)).sqrt() => {}
+        probes => {
+            return ObjectLod {
+                merged: None,
+                outcome: LodOutcome::Kept {
+                    surfel_px: probes.map_or(f64::INFINITY, |p| p.surfel_px),
+                },
+            }
+        }
+    }
+
     let mut keyed: Vec<(CellKey, u32)> = surfels
         .par_iter()
         .enumerate()
@@ -263,7 +255,8 @@ pub fn merge(camera: &Camera, object: &Object, times: &[f64], cells: Cells) -> O
             CellKey::Alone => merged.extend(group.copied()),
             CellKey::Cell { length, .. } => {
                 if end - start > 1 {
-                    longest_cell_px = longest_cell_px.max(grid.cell_length(length));
+                    let length_px = grid.cell_length(grid.bucket_path(length));
+                    longest_cell_px = longest_cell_px.max(length_px);
                 }
                 merge_group(group, end - start, &mut merged);
             }
@@ -274,7 +267,7 @@ pub fn merge(camera: &Camera, object: &Object, times: &[f64], cells: Cells) -> O
         outcome: LodOutcome::Merged {
             surfels_in: surfels.len(),
             surfels_out: merged.len(),
-            along_motion: along_fraction.is_some(),
+            along_motion: grid.along_fraction.is_some(),
             longest_cell_px,
         },
         merged: Some(merged),
@@ -317,10 +310,21 @@ struct Grid<'a> {
 }
 
 impl Grid<'_> {
-    /// Length of the cells in length bucket `length`, px.
-    fn cell_length(&self, length: i16) -> f64 {
-        let path = self.cell * (f64::from(length) / LENGTH_BUCKETS_PER_OCTAVE).exp2();
-        (self.along_fraction.unwrap_or(0.0) * path).clamp(self.cell, self.longest)
+    /// The shortest screen path of length bucket `length`, px.
+    fn bucket_path(&self, length: i16) -> f64 {
+        self.cell * (f64::from(length) / LENGTH_BUCKETS_PER_OCTAVE).exp2()
+    }
+
+    /// Length along the motion of the cell of a surfel whose screen path is `path_px` long. Below
+    /// two cells of motion a cell is square, as for an instant, so a barely moving object is
+    /// merged exactly as a still one.
+    fn cell_length(&self, path_px: f64) -> f64 {
+        match self.along_fraction {
+            Some(share) if path_px >= 2.0 * self.cell => {
+                (share * path_px).clamp(self.cell, self.longest)
+            }
+            _ => self.cell,
+        }
     }
 
     fn key(&self, surfel: &Surfel) -> CellKey {
@@ -353,7 +357,12 @@ impl Grid<'_> {
                 let length = ((path / self.cell).log2() * LENGTH_BUCKETS_PER_OCTAVE).floor();
                 let length = length.clamp(0.0, f64::from(i16::MAX)) as i16;
                 let axis = DVec2::from_angle(angle);
-                (bucket as u8, length, axis, self.cell_length(length))
+                (
+                    bucket as u8,
+                    length,
+                    axis,
+                    self.cell_length(self.bucket_path(length)),
+                )
             } else {
                 (DIRECTION_BUCKETS as u8, 0, DVec2::X, self.cell)
             };

@@ -208,10 +208,16 @@ impl<'a> Plan<'a> {
         }
     }
 
-    /// [`Plan::surfels`] of every object, in scene order.
-    #[must_use]
-    pub fn all_surfels(&self) -> Vec<&[Surfel]> {
-        (0..self.objects.len()).map(|i| self.surfels(i)).collect()
+    /// Every object in scene order, with its plan and the surfels the method draws it with
+    /// ([`Plan::surfels`]).
+    pub fn drawn(&self) -> impl Iterator<Item = (&'a Object, &ObjectPlan, &[Surfel])> + '_ {
+        let scene: &'a Scene = self.scene;
+        scene
+            .objects
+            .iter()
+            .zip(&self.objects)
+            .enumerate()
+            .map(|(index, (object, plan))| (object, plan, self.surfels(index)))
     }
 
     /// Whether anything moves.

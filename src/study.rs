@@ -76,9 +76,15 @@ impl Setting {
             lod: Lod::Auto,
         }
     }
-}
 
-impl Setting {
+    /// `label` of this setting, with `full_detail` after it at `--lod off`.
+    fn with_lod(&self, label: String, full_detail: &str) -> String {
+        match self.lod {
+            Lod::Off => label + full_detail,
+            _ => label,
+        }
+    }
+
     fn knob(&self) -> String {
         let knob = match &self.method {
             Method::Static { .. } => "t=mid".to_string(),
@@ -87,10 +93,7 @@ impl Setting {
             Method::Hint { style, .. } => format!("style={}", style.name()),
             Method::Kernel3d { .. } => self.kernel_label("F=", ""),
         };
-        match self.lod {
-            Lod::Off => format!("{knob} lod=off"),
-            _ => knob,
-        }
+        self.with_lod(knob, " lod=off")
     }
 
     /// `kernel3d`'s sub-frames (or `plan`) after `prefix`, and `approximate` in the GPU mode.
@@ -121,10 +124,7 @@ impl Setting {
             } => format!("{} approx", self.method.name()),
             method => method.name().to_string(),
         };
-        match self.lod {
-            Lod::Off => format!("{series} full detail"),
-            _ => series,
-        }
+        self.with_lod(series, " full detail")
     }
 
     fn file_stem(&self) -> String {
@@ -135,10 +135,7 @@ impl Setting {
             Method::Hint { style, .. } => format!("hint-{}", style.name()),
             Method::Kernel3d { .. } => format!("kernel3d-{}", self.kernel_label("f", "-approx")),
         };
-        match self.lod {
-            Lod::Off => format!("{stem}-lod-off"),
-            _ => stem,
-        }
+        self.with_lod(stem, "-lod-off")
     }
 }
 

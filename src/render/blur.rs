@@ -27,8 +27,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
     let mut stats = Stats::default();
     let mut footprints = Vec::new();
     let camera = &scene.camera;
-    for (index, (object, object_plan)) in scene.objects.iter().zip(&plan.objects).enumerate() {
-        let surfels = plan.surfels(index);
+    for (object, object_plan, surfels) in plan.drawn() {
         let ObjectMotion::Moving { segments, .. } = &object_plan.motion else {
             object_footprints_at(
                 camera,

@@ -33,7 +33,6 @@ use crate::plan::{Plan, TOLERANCE_RANGE_PX};
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, Target, TimeBins};
 use crate::scene::Scene;
 use crate::style::Style;
-use crate::surfels::Surfel;
 use std::sync::Arc;
 
 /// Most frames the reference may average (and the study may ask for).
@@ -298,12 +297,12 @@ pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render 
     render
 }
 
-/// The whole scene drawn with `surfels` (one slice per object) splatted at time `t`, as a layer,
+/// The whole scene as `plan` draws it (with its level of detail) splatted at time `t`, as a layer,
 /// counting into `stats`.
-fn instant_layer(scene: &Scene, surfels: &[&[Surfel]], t: f64, stats: &mut Stats) -> Layer {
+fn instant_layer(scene: &Scene, plan: &Plan, t: f64, stats: &mut Stats) -> Layer {
     rasterize_counted(
         scene,
-        &still::footprints_at(scene, surfels, t, &mut stats.culled),
+        &still::footprints_at(scene, plan, t, &mut stats.culled),
         &TimeBins::INSTANT,
         stats,
     )

@@ -36,16 +36,11 @@ pub(super) fn render(
     progress: Option<Progress>,
 ) -> Render {
     let mut stats = Stats::default();
-    let objects = || {
-        scene
-            .objects
-            .iter()
-            .zip(&plan.objects)
-            .zip(plan.all_surfels())
-            .map(|((object, object_plan), surfels)| (object, object_plan, surfels))
-    };
     let mut still = Vec::new();
-    for (object, _, surfels) in objects().filter(|(_, p, _)| p.motion == ObjectMotion::Still) {
+    for (object, _, surfels) in plan
+        .drawn()
+        .filter(|(_, p, _)| p.motion == ObjectMotion::Still)
+    {
         object_footprints_at(
             &scene.camera,
             &scene.lighting,
@@ -61,7 +56,10 @@ pub(super) fn render(
     for (t, mass) in scene.shutter.strata(samples) {
         footprints.clear();
         footprints.extend_from_slice(&still);
-        for (object, _, surfels) in objects().filter(|(_, p, _)| p.motion != ObjectMotion::Still) {
+        for (object, _, surfels) in plan
+            .drawn()
+            .filter(|(_, p, _)| p.motion != ObjectMotion::Still)
+        {
             object_footprints_at(
                 &scene.camera,
                 &scene.lighting,

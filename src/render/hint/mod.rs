@@ -184,14 +184,14 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         };
         let emits = emitters(views, trail, &object_layer, &mut hint);
         // The trail is drawn from the plan's surfels: where it merged them, they emit by how
-        // they are seen at the flash themselves (and are what the counts count).
+        // they are seen at the flash themselves (the counts and the speed lines keep the
+        // object's own surfels).
         let trail_surfels = plan.surfels(index);
-        let trail_emits = if plan.objects[index].lod.merged.is_some() && trail.draw {
+        let merged_emits = (object_plan.lod.merged.is_some() && trail.draw).then(|| {
             let views = views_at(scene, (object, trail_surfels), flash);
             emitters(&views, trail, &object_layer, &mut HintStats::default())
-        } else {
-            emits.clone()
-        };
+        });
+        let trail_emits = merged_emits.as_deref().unwrap_or(&emits);
         if trail.draw && window[1] > window[0] {
             let context = TrailContext {
                 scene,
@@ -205,7 +205,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 segments,
                 &copies,
                 max_piece,
-                &trail_emits,
+                trail_emits,
             );
             hint.trail_splats += footprints.len();
             hint.trail_culled.add(&culled);

@@ -143,8 +143,7 @@ pub(super) fn render(
     // time it needs; a moving one a kernel per sub-frame.
     let mut still_kernels = Vec::new();
     let mut moving_surfels = 0;
-    let surfels = plan.all_surfels();
-    for ((object, object_plan), &surfels) in scene.objects.iter().zip(&plan.objects).zip(&surfels) {
+    for (object, object_plan, surfels) in plan.drawn() {
         if object_plan.motion == ObjectMotion::Still {
             let span = [scene.shutter.open, scene.shutter.close];
             still_kernels.extend(kernels_over(
@@ -187,9 +186,7 @@ pub(super) fn render(
     for (pass, first) in (0..windows.len()).step_by(per_pass).enumerate() {
         let last = (first + per_pass).min(windows.len());
         let mut kernels = still_kernels.clone();
-        for ((object, object_plan), &surfels) in
-            scene.objects.iter().zip(&plan.objects).zip(&surfels)
-        {
+        for (object, object_plan, surfels) in plan.drawn() {
             if object_plan.motion != ObjectMotion::Still {
                 for k in first..last {
                     let span = [times[k], times[k + 1]];
@@ -225,7 +222,7 @@ pub(super) fn render(
             (visibility == Visibility::Approximate).then(|| {
                 times[first..=last]
                     .iter()
-                    .map(|&t| instant_layer(scene, &surfels, t, &mut Stats::default()).front_depth)
+                    .map(|&t| instant_layer(scene, plan, t, &mut Stats::default()).front_depth)
                     .collect()
             });
         let results: Vec<TileResult> = (0..grid.count())
