@@ -6,6 +6,8 @@
 //! `cargo bench --bench lod_sweep -- [SCENE] [SIZE] [REFERENCE_SAMPLES]`, by default
 //! `gallery/torus_knot.toml 512 256`. The reference is cached in `target/lod-sweep/`.
 
+mod common;
+
 use std::path::Path;
 use std::time::Instant;
 
@@ -33,19 +35,12 @@ fn timed(scene: &Scene, method: &Method, lod: Lod) -> streak::Result<(Framebuffe
 }
 
 fn main() -> streak::Result<()> {
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
-    let arg = |i: usize, default: &str| args.get(i).cloned().unwrap_or_else(|| default.into());
+    let arg = common::args();
     let scene_path = arg(0, "gallery/torus_knot.toml");
     let size: u32 = arg(1, "512").parse().expect("SIZE is a number of pixels");
     let samples: usize = arg(2, "256").parse().expect("REFERENCE_SAMPLES is a count");
 
-    let mut scene = Scene::load(Path::new(&scene_path))?;
-    let (w, h) = (scene.camera.width, scene.camera.height);
-    let height = (u64::from(size) * u64::from(h) / u64::from(w)).max(1) as u32;
-    scene.camera = scene.camera.resized(size, height)?;
+    let (scene, height) = common::scene_at_width(&scene_path, size)?;
     let reference = converged_reference(&scene, samples, Path::new("target/lod-sweep"), None)?;
     let (_, base, _) = timed(&scene, &Method::STATIC, Lod::Off)?;
     println!(

@@ -7,18 +7,14 @@
 //! `blur`, `kernel3d`, `reference:N`. Profile it with
 //! `perf record -g target/release/deps/raster-* gallery/torus_knot.toml static 1024 40`.
 
-use std::path::Path;
+mod common;
+
 use std::time::Instant;
 
-use streak::{Method, Plan, Scene};
+use streak::{Method, Plan};
 
 fn main() -> streak::Result<()> {
-    // `cargo bench` passes `--bench`; everything else is ours.
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
-    let arg = |i: usize, default: &str| args.get(i).cloned().unwrap_or_else(|| default.into());
+    let arg = common::args();
     let scene_path = arg(0, "gallery/torus_knot.toml");
     let method = match arg(1, "static").as_str() {
         "static" => Method::STATIC,
@@ -32,10 +28,7 @@ fn main() -> streak::Result<()> {
     let size: u32 = arg(2, "1024").parse().expect("SIZE is a number of pixels");
     let repeats: usize = arg(3, "9").parse().expect("REPEATS is a count");
 
-    let mut scene = Scene::load(Path::new(&scene_path))?;
-    let (w, h) = (scene.camera.width, scene.camera.height);
-    let height = (u64::from(size) * u64::from(h) / u64::from(w)).max(1) as u32;
-    scene.camera = scene.camera.resized(size, height)?;
+    let (scene, height) = common::scene_at_width(&scene_path, size)?;
     let surfels = scene.surfel_count();
 
     let mut times = Vec::with_capacity(repeats);
