@@ -485,33 +485,37 @@ pub fn rasterize<const B: usize>(
         footprints[index as usize].for_each_tile(&grid, visit);
     });
 
-    let blocks: Vec<Vec<PixelOut>> = (0..grid.count())
-        .into_par_iter()
-        .map(|tile| {
-            render_tile(
-                footprints,
-                lists.list(tile),
-                grid.pixels(tile),
-                target,
-                bins,
-            )
-        })
-        .collect();
-
+    // Each task renders one row of tiles into its band of the layer, reusing one scratch buffer.
     let mut layer = Layer::clear(width, height);
-    let w = width as usize;
-    let rows = (layer.colour.par_chunks_mut(w))
-        .zip(layer.transmittance.par_chunks_mut(w))
-        .zip(layer.front_depth.par_chunks_mut(w));
-    grid.scatter(
-        &blocks,
-        rows,
-        |((colour, transmittance), front_depth), x, out| {
-            colour[x] = out.colour;
-            transmittance[x] = out.transmittance;
-            front_depth[x] = out.front_depth;
-        },
-    );
+    let band = width as usize * TILE_PX as usize;
+    (layer.colour.par_chunks_mut(band))
+        .zip(layer.transmittance.par_chunks_mut(band))
+        .zip(layer.front_depth.par_chunks_mut(band))
+        .enumerate()
+        .for_each(|(ty, ((colour, transmittance), front_depth))| {
+            let mut scratch = TileScratch::default();
+            for tile in grid.row(ty) {
+                let bounds @ [x0, _, x1, _] = grid.pixels(tile);
+                let pixels = render_tile(
+                    footprints,
+                    lists.list(tile),
+                    bounds,
+                    target,
+                    bins,
+                    &mut scratch,
+                );
+                let w = (x1 - x0) as usize;
+                for (r, row) in pixels.chunks(w).enumerate() {
+                    let start = r * width as usize + x0 as usize;
+                    for (i, pixel) in row.iter().enumerate() {
+                        let (c, t, d) = pixel.finish(bins);
+                        colour[start + i] = c;
+                        transmittance[start + i] = t;
+                        front_depth[start + i] = d;
+                    }
+                }
+            }
+        });
     let stats = RasterStats {
         footprints: footprints.len(),
         tile_entries: lists.entries(),
@@ -520,21 +524,13 @@ pub fn rasterize<const B: usize>(
     (layer, stats)
 }
 
-/// One composited pixel of a [`Layer`].
-#[derive(Clone, Copy)]
-struct PixelOut {
-    colour: [f32; 3],
-    transmittance: f32,
-    front_depth: f32,
-}
-
-impl PixelOut {
-    /// A pixel no footprint reached.
-    const CLEAR: PixelOut = PixelOut {
-        colour: [0.0; 3],
-        transmittance: 1.0,
-        front_depth: f32::INFINITY,
-    };
+/// What rendering a tile needs and can reuse from one tile to the next.
+#[derive(Default)]
+struct TileScratch<const B: usize> {
+    /// The tile's footprints as depth keys.
+    order: Vec<u64>,
+    /// The tile's pixels, row by row.
+    pixels: Vec<PixelState<B>>,
 }
 
 /// A key whose unsigned order is the total order of f32 (`f32::total_cmp`).
@@ -560,26 +556,27 @@ pub(crate) fn ceil_non_negative(x: f32) -> u32 {
 }
 
 /// Composite the footprints binned to one tile, in depth order (the footprint's index breaking
-/// ties, so the order is total); returns the tile's pixels row by row.
-fn render_tile<const B: usize>(
+/// ties, so the order is total); returns the tile's open pixel states row by row.
+fn render_tile<'s, const B: usize>(
     footprints: &[Footprint],
     list: &[u32],
     [x0, y0, x1, y1]: [u32; 4],
     target: &Target,
     bins: &TimeBins<B>,
-) -> Vec<PixelOut> {
+    scratch: &'s mut TileScratch<B>,
+) -> &'s [PixelState<B>] {
     let w = (x1 - x0) as usize;
     let size = w * (y1 - y0) as usize;
-    if list.is_empty() {
-        return vec![PixelOut::CLEAR; size];
-    }
-    let mut order: Vec<u64> = list
-        .iter()
-        .map(|&i| u64::from(order_key(footprints[i as usize].depth)) << 32 | u64::from(i))
-        .collect();
+    let TileScratch { order, pixels } = scratch;
+    pixels.clear();
+    pixels.resize(size, PixelState::<B>::EMPTY);
+    order.clear();
+    order.extend(
+        list.iter()
+            .map(|&i| u64::from(order_key(footprints[i as usize].depth)) << 32 | u64::from(i)),
+    );
     order.sort_unstable();
-    let mut pixels = vec![PixelState::<B>::EMPTY; size];
-    for key in order {
+    for &key in order.iter() {
         let f = &footprints[key as u32 as usize];
         let sampler = Sampler::new(f.profile, f.conic, target.texture);
         let [a, b, c] = f.conic;
@@ -614,16 +611,6 @@ fn render_tile<const B: usize>(
         }
     }
     pixels
-        .into_iter()
-        .map(|p| {
-            let (colour, transmittance, front_depth) = p.finish(bins);
-            PixelOut {
-                colour,
-                transmittance,
-                front_depth,
-            }
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -36,6 +36,11 @@ impl TileGrid {
         ty as usize * self.tiles_x + tx as usize
     }
 
+    /// The tiles of tile row `ty`, left to right.
+    pub(crate) fn row(&self, ty: usize) -> std::ops::Range<usize> {
+        ty * self.tiles_x..(ty + 1) * self.tiles_x
+    }
+
     /// The pixel rectangle [x0, y0, x1, y1) of `tile`.
     pub(crate) fn pixels(&self, tile: usize) -> [u32; 4] {
         let x0 = (tile % self.tiles_x) as u32 * TILE_PX;
