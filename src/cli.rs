@@ -9,7 +9,9 @@ use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::io::image as output;
 use streak::lod::Lod;
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
-use streak::render::{Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES, MAX_SUBFRAMES};
+use streak::render::{
+    Subframes, Visibility, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX, MAX_SAMPLES, MAX_SUBFRAMES,
+};
 use streak::scene::camera::check_image_size;
 use streak::study::{self, StudyOptions};
 use streak::style::Style;
@@ -48,6 +50,8 @@ enum MethodName {
     Hint,
     /// 3D spatio-temporal kernels integrated along pixel rays, with an A-buffer.
     Kernel3d,
+    /// Triangle meshes with analytic visibility in time (time-continuous triangles).
+    Analytic,
 }
 
 /// Options shared by every command that renders.
@@ -66,6 +70,10 @@ struct ImageArgs {
     /// made; default 8000000, about 2.5 GB at the peak of a render).
     #[arg(long)]
     max_surfels: Option<usize>,
+    /// Spatial samples per pixel where triangles are drawn, an n × n grid: 1, 4, 9, …, 64
+    /// (overrides the scene's `camera.spatial_samples`, default 4).
+    #[arg(long)]
+    spatial_samples: Option<u32>,
 }
 
 impl ImageArgs {
@@ -97,8 +105,8 @@ struct RenderArgs {
     /// Instant drawn by `static`, in normalized frame time [0, 1] (default: mid-exposure).
     #[arg(long)]
     time: Option<f64>,
-    /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`, `hint`, and
-    /// `kernel3d` without `--subframes`) [default: 1].
+    /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`, `hint`,
+    /// `kernel3d` without `--subframes`, and `analytic`) [default: 1; `analytic` 0.1].
     #[arg(long)]
     tolerance: Option<f64>,
     /// Style file for `hint` (default: the scene's `style`, else the built-in default style).
@@ -234,6 +242,12 @@ fn load(path: &Path, image: &ImageArgs) -> Result<Scene> {
     if let (Some(w), Some(h)) = (image.width, image.height) {
         scene.camera = scene.camera.resized(w, h).map_err(as_option)?;
     }
+    if let Some(samples) = image.spatial_samples {
+        scene.camera = scene
+            .camera
+            .with_spatial_samples(samples)
+            .map_err(as_option)?;
+    }
     Ok(scene)
 }
 
@@ -280,7 +294,12 @@ fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
     only(
         args.tolerance.is_some(),
         "--tolerance",
-        &[MethodName::Blur, MethodName::Hint, MethodName::Kernel3d],
+        &[
+            MethodName::Blur,
+            MethodName::Hint,
+            MethodName::Kernel3d,
+            MethodName::Analytic,
+        ],
     )?;
     if args.tolerance.is_some() && args.subframes.is_some() {
         return Err(Error::Usage(
@@ -295,6 +314,9 @@ fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
             samples: args.samples.unwrap_or(64),
         },
         MethodName::Blur => Method::Blur { tolerance_px },
+        MethodName::Analytic => Method::Analytic {
+            tolerance_px: args.tolerance.unwrap_or(ANALYTIC_TOLERANCE_PX),
+        },
         MethodName::Hint => Method::Hint {
             style: Arc::new(match &args.style {
                 Some(path) => Style::load(path)?,
@@ -379,12 +401,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
         let surfel_instants = scene.surfel_count() * out.stats.frames;
         print_quietly(&format!(
             "scene: {} surfels read and sampled in {load_seconds:.3} s (files, point clouds, meshes, volume iso-surfaces)\n\
-             {}{}\
+             {}{}{}\
              rendered {} footprints in {} frame(s) in {seconds:.3} s; tile lists: {} entries, longest {}\n\
              throughput: {:.3e} surfels × frames per second, {:.3e} footprints per second (plan + render)\n",
             scene.surfel_count(),
             plan.explain(Some(&out.stats.culled)),
             out.stats.method.explain(),
+            out.stats.triangles.explain(),
             out.stats.footprints,
             out.stats.frames,
             out.stats.tile_entries,

@@ -168,6 +168,44 @@ pub fn smallest_eigenvector(mut a: [[f64; 3]; 3]) -> DVec3 {
     column.try_normalize().unwrap_or(DVec3::Z)
 }
 
+/// Real roots of a·x² + b·x + c = 0 in ascending order, as (roots, how many): none, one or two,
+/// a double root once.
+///
+/// The stable form: q = −(b + sign(b)·√(b² − 4ac))/2, roots q/a and c/q, so neither root comes
+/// from subtracting nearly equal numbers. A leading term that is negligible against the others
+/// (|a| ≤ 1e-12·(|b| + |c|)) makes the equation linear: its second root lies beyond 10¹² of the
+/// scale and is left out. Non-finite coefficients give no roots.
+#[must_use]
+pub fn quadratic_roots(a: f64, b: f64, c: f64) -> ([f64; 2], usize) {
+    if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+        return ([0.0; 2], 0);
+    }
+    let scale = b.abs() + c.abs();
+    if a.abs() <= 1e-12 * scale || a == 0.0 {
+        return if b != 0.0 {
+            ([-c / b, 0.0], 1)
+        } else {
+            ([0.0; 2], 0)
+        };
+    }
+    let discriminant = b * b - 4.0 * a * c;
+    if discriminant < 0.0 {
+        return ([0.0; 2], 0);
+    }
+    if discriminant == 0.0 {
+        return ([-0.5 * b / a, 0.0], 1);
+    }
+    let q = -0.5 * (b + b.signum() * discriminant.sqrt());
+    // q = 0 only when b = 0 and ac ≥ 0 with a positive discriminant: impossible, but stay safe.
+    let (x0, x1) = if q == 0.0 {
+        let r = (-c / a).abs().sqrt();
+        (-r, r)
+    } else {
+        (q / a, c / q)
+    };
+    ([x0.min(x1), x0.max(x1)], 2)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -202,5 +240,32 @@ mod tests {
             );
             assert!(a.dot(b).abs() < 1e-12 && a.length() >= b.length());
         }
+    }
+
+    #[test]
+    fn quadratic_roots_are_accurate_in_the_hard_cases() {
+        let close = |(roots, n): ([f64; 2], usize), want: &[f64]| {
+            let got = &roots[..n];
+            got.len() == want.len()
+                && got
+                    .iter()
+                    .zip(want)
+                    .all(|(g, w)| (g - w).abs() <= 1e-12 * w.abs().max(1.0))
+        };
+        // (x − 0.25)(x − 0.75).
+        assert!(close(quadratic_roots(1.0, -1.0, 0.1875), &[0.25, 0.75]));
+        // A double root.
+        assert!(close(quadratic_roots(1.0, -1.0, 0.25), &[0.5]));
+        // Roots 10⁻⁸ and 10⁸: the naive formula loses the small one entirely.
+        let got = quadratic_roots(1.0, -(1e8 + 1e-8), 1.0);
+        assert!(close(got, &[1e-8, 1e8]), "{got:?}");
+        // A vanishing leading term: the linear root.
+        assert!(close(quadratic_roots(1e-20, 2.0, -1.0), &[0.5]));
+        assert!(close(quadratic_roots(0.0, 2.0, -1.0), &[0.5]));
+        assert_eq!(quadratic_roots(0.0, 0.0, 1.0).1, 0);
+        assert_eq!(quadratic_roots(1.0, 0.0, 1.0).1, 0);
+        assert_eq!(quadratic_roots(f64::NAN, 1.0, 1.0).1, 0);
+        // b = 0: symmetric roots.
+        assert!(close(quadratic_roots(4.0, 0.0, -1.0), &[-0.5, 0.5]));
     }
 }

@@ -7,14 +7,15 @@
 //! pieces, so that the renderers drop only the piece around the crossing. Derivation:
 //! docs/math.md, "Sub-segment planning".
 
+use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
-use crate::render::{render_planned, trail_window, Method, Progress, Render};
+use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
 use crate::scene::camera::Camera;
 use crate::scene::{Object, Scene};
 use crate::surfels::Surfel;
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
 /// A sub-segment may be at most this many tolerances long on screen. One motion ellipse stands
 /// for a whole segment with a single Gaussian; a long one differs from the true streak (a box
@@ -154,12 +155,14 @@ impl<'a> Plan<'a> {
                         [open, close],
                         tolerance_px,
                         max_segments,
+                        draws_triangles(method, object),
                     )
                 } else {
                     ObjectMotion::Still
                 };
                 let kernels = matches!(method, Method::Kernel3d { .. });
                 let lod = match lod.blurred_cells(kernels) {
+                    _ if draws_triangles(method, object) => ObjectLod::OFF,
                     None => ObjectLod::OFF,
                     Some(cells) => object_lod(scene, object, &motion, method, cells),
                 };
@@ -171,13 +174,57 @@ impl<'a> Plan<'a> {
                 }
             })
             .collect();
-        Ok(Plan {
+        let plan = Plan {
             scene,
             method: method.clone(),
             objects,
             tolerance_px,
             lit: scene.lighting.is_lit(),
-        })
+        };
+        let items = plan.triangle_items();
+        if items > MAX_TRIANGLE_ITEMS {
+            return Err(Error::invalid(
+                "triangles",
+                format!(
+                    "{items} triangle items (triangles × sub-segments) are more than the {MAX_TRIANGLE_ITEMS} one render may hold: simplify the mesh, or raise --tolerance for fewer sub-segments"
+                ),
+            ));
+        }
+        Ok(plan)
+    }
+
+    /// Whether object `index` is drawn as its triangles (a triangle object, and a method that
+    /// draws triangles: `static`, `reference`, `analytic`), not as its surfels.
+    #[must_use]
+    pub fn draws_triangles(&self, index: usize) -> bool {
+        draws_triangles(&self.method, &self.scene.objects[index])
+    }
+
+    /// Whether any object is drawn as triangles.
+    #[must_use]
+    pub fn any_triangles(&self) -> bool {
+        (0..self.objects.len()).any(|i| self.draws_triangles(i))
+    }
+
+    /// Triangle items one image draws: each triangle once per sub-segment (`analytic`) or once
+    /// (an instant).
+    fn triangle_items(&self) -> usize {
+        self.scene
+            .objects
+            .iter()
+            .zip(&self.objects)
+            .enumerate()
+            .filter(|(i, _)| self.draws_triangles(*i))
+            .map(|(_, (object, plan))| {
+                let triangles = object.mesh().map_or(0, |m| m.triangles.len());
+                match (&self.method, &plan.motion) {
+                    (Method::Analytic { .. }, ObjectMotion::Moving { segments, .. }) => {
+                        triangles * segments.len()
+                    }
+                    _ => triangles,
+                }
+            })
+            .sum()
     }
 
     /// The scene this plan was made for.
@@ -208,8 +255,9 @@ impl<'a> Plan<'a> {
         }
     }
 
-    /// Every object in scene order, with its plan and the surfels the method draws it with
-    /// ([`Plan::surfels`]).
+    /// Every object the method draws as surfels, in scene order, with its plan and its surfels
+    /// ([`Plan::surfels`]); objects drawn as triangles ([`Plan::draws_triangles`]) are not among
+    /// them.
     pub fn drawn(&self) -> impl Iterator<Item = (&'a Object, &ObjectPlan, &[Surfel])> + '_ {
         let scene: &'a Scene = self.scene;
         scene
@@ -217,6 +265,7 @@ impl<'a> Plan<'a> {
             .iter()
             .zip(&self.objects)
             .enumerate()
+            .filter(|(index, _)| !self.draws_triangles(*index))
             .map(|(index, (object, plan))| (object, plan, self.surfels(index)))
     }
 
@@ -288,6 +337,15 @@ impl<'a> Plan<'a> {
         }
         out
     }
+}
+
+/// Whether `method` draws `object` as triangles.
+fn draws_triangles(method: &Method, object: &Object) -> bool {
+    object.mesh().is_some()
+        && matches!(
+            method,
+            Method::Static { .. } | Method::Reference { .. } | Method::Analytic { .. }
+        )
 }
 
 /// The level of detail of one object for `method`: merged in square cells at each instant the
@@ -374,6 +432,8 @@ struct ProbeView {
     weight: f64,
     /// The same facing the eye, |e − p|/z³.
     facing_weight: f64,
+    /// Camera-space position.
+    view: DVec3,
 }
 
 /// Every probe at time t, each `None` when not in front of the camera. The pose is evaluated
@@ -394,6 +454,7 @@ fn probes_at(camera: &Camera, object: &Object, probes: &[usize], t: f64) -> Vec<
                 .normalize_or_zero();
             let depth_cubed = depth.powi(3);
             Some(ProbeView {
+                view: p_view,
                 screen,
                 weight: n_view.dot(-p_view) / depth_cubed,
                 facing_weight: p_view.length() / depth_cubed,
@@ -430,12 +491,16 @@ struct Fit {
     /// Largest departure of a probe's screen weight from its chord over a piece (see
     /// [`MAX_WEIGHT_DEVIATION`]).
     weight: f64,
+    /// Largest distance, px, between where a probe is at a time and where it would be moving
+    /// uniformly along its camera-space chord (a triangle corner's path): off the path, or
+    /// ahead of or behind itself along it.
+    timed: f64,
 }
 
 /// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal
 /// pieces of [t0, t1].
 fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
-    let (mut deviation, mut longest, mut weight) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut deviation, mut longest, mut weight, mut timed) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let at = |t: f64| probes_at(camera, object, probes, t);
     // Each piece starts where the one before ends.
     let mut starts = at(t0);
@@ -461,6 +526,11 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
                     continue;
                 };
                 deviation = deviation.max(distance_to_segment(p.screen, pa.screen, pb.screen));
+                // In camera space, to px at the probe's depth: a corner's chord may cross the
+                // near plane, where the triangle is clipped in time rather than cut.
+                let depth = (-p.view.z).max(camera.near);
+                timed = timed
+                    .max(pa.view.lerp(pb.view, share).distance(p.view) * camera.focal_px / depth);
                 let chord = pa.weight + (pb.weight - pa.weight) * share;
                 if p.facing_weight > 0.0 {
                     weight = weight.max((p.weight - chord).abs() / p.facing_weight);
@@ -473,17 +543,22 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
         deviation,
         longest,
         weight,
+        timed,
     }
 }
 
 /// The sub-segments of `object`'s motion over [open, close], within `tolerance_px` unless more
-/// than `max_segments` would be needed: then `max_segments` equal ones, marked capped.
+/// than `max_segments` would be needed: then `max_segments` equal ones, marked capped. For
+/// triangles (`chord_only`) only the chord counts, timed: their corners move uniformly along
+/// camera-space chords, so a point's error is its distance from where the chord puts it at the
+/// same time, and neither a chord's length nor a splat's weight bends anything.
 fn plan_motion(
     camera: &Camera,
     object: &Object,
     [open, close]: [f64; 2],
     tolerance_px: f64,
     max_segments: usize,
+    chord_only: bool,
 ) -> ObjectMotion {
     let stride = object.surfels().len().div_ceil(PROBES).max(1);
     let probes: Vec<usize> = (0..object.surfels().len()).step_by(stride).collect();
@@ -500,11 +575,21 @@ fn plan_motion(
         let (t0, t1) = (pair[0], pair[1]);
         let mut k = 1;
         let fit = loop {
-            let fit = measure(camera, object, &probes, t0, t1, k);
-            let max_length = SEGMENT_LENGTH_PER_TOLERANCE * tolerance_px;
+            let mut fit = measure(camera, object, &probes, t0, t1, k);
+            if chord_only {
+                fit.deviation = fit.timed;
+            }
+            let (max_length, max_weight) = if chord_only {
+                (f64::INFINITY, f64::INFINITY)
+            } else {
+                (
+                    SEGMENT_LENGTH_PER_TOLERANCE * tolerance_px,
+                    MAX_WEIGHT_DEVIATION,
+                )
+            };
             let holds = fit.deviation <= tolerance_px
                 && fit.longest <= max_length
-                && fit.weight <= MAX_WEIGHT_DEVIATION;
+                && fit.weight <= max_weight;
             if holds || k >= MAX_SEGMENTS_PER_INTERVAL {
                 if !holds {
                     capped = Some(SegmentCap::PerInterval);
@@ -516,7 +601,7 @@ fn plan_motion(
             // more.
             let factor = (fit.deviation / tolerance_px)
                 .sqrt()
-                .max((fit.weight / MAX_WEIGHT_DEVIATION).sqrt())
+                .max((fit.weight / max_weight).sqrt())
                 .max(fit.longest / max_length);
             let next = (k as f64 * factor).ceil();
             k = if next.is_finite() {
@@ -533,7 +618,8 @@ fn plan_motion(
     if segments.len() > max_segments {
         segments = pieces(open, close, max_segments).collect();
         let fit = measure(camera, object, &probes, open, close, max_segments);
-        (deviation_px, longest_segment_px) = (fit.deviation, fit.longest);
+        let deviation = if chord_only { fit.timed } else { fit.deviation };
+        (deviation_px, longest_segment_px) = (deviation, fit.longest);
         capped = Some(SegmentCap::Footprints(max_segments));
     }
     // Each probe's screen path, summed over short chords in time order.

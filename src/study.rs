@@ -92,6 +92,7 @@ impl Setting {
             Method::Reference { samples } => format!("N={samples}"),
             Method::Hint { style, .. } => format!("style={}", style.name()),
             Method::Kernel3d { .. } => self.kernel_label("F=", ""),
+            Method::Analytic { tolerance_px } => format!("τ={tolerance_px}px"),
         };
         self.with_lod(knob, " lod=off")
     }
@@ -134,6 +135,7 @@ impl Setting {
             Method::Reference { samples } => format!("reference-n{samples}"),
             Method::Hint { style, .. } => format!("hint-{}", style.name()),
             Method::Kernel3d { .. } => format!("kernel3d-{}", self.kernel_label("f", "-approx")),
+            Method::Analytic { tolerance_px } => format!("analytic-tol{tolerance_px}"),
         };
         self.with_lod(stem, "-lod-off")
     }

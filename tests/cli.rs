@@ -432,7 +432,7 @@ fn command_line_mistakes_are_explained() {
         ),
         (
             vec!["render", "scene.toml", "-m", "static", "--tolerance", "2"],
-            "--tolerance applies to -m blur and -m hint and -m kernel3d only",
+            "--tolerance applies to -m blur and -m hint and -m kernel3d and -m analytic only",
         ),
         (
             vec!["render", "scene.toml", "--tolerance", "1000"],

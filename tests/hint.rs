@@ -232,7 +232,9 @@ fn points_hidden_at_the_flash_emit_no_trail() {
 #[test]
 fn speed_lines_trail_the_object_and_lie_under_it() {
     let mut scene = sliding_square(6.0);
-    let streak::scene::Geometry::Surfels(surfels) = &mut scene.objects[0].geometry;
+    let streak::scene::Geometry::Surfels(surfels) = &mut scene.objects[0].geometry else {
+        unreachable!("the sliding square is made of surfels")
+    };
     streak::surfels::Colouring::Rgb([0.5; 3]).apply(surfels);
     let lines = style(
         "background = [1, 1, 1]\n[trail]\ndraw = false\n[speed_lines]\ndraw = true\nselect = \"sample\"\ncount = 5\nspacing = 3\ncolour = [0, 0, 0]\nwidth = 2\ntaper = 1\nfade = 1",

@@ -15,6 +15,7 @@ use super::raw_volume::VoxelType;
 use crate::error::{Error, Result};
 use crate::scene::{
     Camera, Keyframe, Light, Lighting, Motion, Object, Pose, Scene, Shutter, ShutterShape,
+    TriangleMesh,
 };
 use crate::style::Style;
 use crate::surfels::cloud::{check_neighbours, DEFAULT_NEIGHBOURS};
@@ -52,6 +53,7 @@ struct CameraSpec {
     width: u32,
     height: u32,
     near: Option<f64>,
+    spatial_samples: Option<u32>,
 }
 
 fn default_up() -> [f64; 3] {
@@ -243,6 +245,9 @@ pub struct MeshShape {
     /// Whether to move the mesh so that the centre of its bounding box is the object's origin
     /// (default true); false keeps the file's coordinates.
     pub centre: Option<bool>,
+    /// `"surfels"` (the default) or `"triangles"`: drawn as its triangles by the methods that
+    /// can (`static`, `reference`, `analytic`), as its sampled surfels by the others.
+    pub draw: Option<String>,
 }
 
 impl MeshShape {
@@ -256,6 +261,32 @@ impl MeshShape {
         field: &str,
         budget: Budget,
     ) -> Result<Vec<Surfel>> {
+        Ok(self.read(file, base, field, budget)?.2)
+    }
+
+    /// Whether the mesh is drawn as triangles; an error names `draw` when it is neither
+    /// `"surfels"` nor `"triangles"`.
+    pub fn as_triangles(&self, file: &Path, field: &str) -> Result<bool> {
+        match self.draw.as_deref() {
+            None | Some("surfels") => Ok(false),
+            Some("triangles") => Ok(true),
+            Some(other) => Err(Error::input(
+                file,
+                format!("{field}.draw"),
+                format!("{other:?}: draw a mesh as \"surfels\" or \"triangles\""),
+            )),
+        }
+    }
+
+    /// Check every field and read the file: the mesh, the offset its surfels were moved by
+    /// (the centre of its bounds, or zero) and the surfels sampled from it.
+    fn read(
+        &self,
+        file: &Path,
+        base: &Path,
+        field: &str,
+        budget: Budget,
+    ) -> Result<(Mesh, DVec3, Vec<Surfel>)> {
         let samples_field = format!("{field}.samples");
         let count = usize::try_from(self.samples)
             .ok()
@@ -277,7 +308,28 @@ impl MeshShape {
             .map_err(|e| e.in_file(file, ""))?;
         let path = base.join(&self.path);
         let mesh = Mesh::read(&path)?;
-        from_mesh(&mesh, count, self.centre.unwrap_or(true)).map_err(|e| e.in_file(&path, ""))
+        let centre = self.centre.unwrap_or(true);
+        let surfels = from_mesh(&mesh, count, centre).map_err(|e| e.in_file(&path, ""))?;
+        let offset = match (centre, mesh.bounds()) {
+            (true, Some((lo, hi))) => 0.5 * (lo + hi),
+            _ => DVec3::ZERO,
+        };
+        Ok((mesh, offset, surfels))
+    }
+
+    /// The mesh as triangles (coloured by `colouring`) with the surfels sampled from it.
+    pub fn triangles(
+        &self,
+        file: &Path,
+        base: &Path,
+        field: &str,
+        budget: Budget,
+        colouring: Colouring,
+    ) -> Result<(TriangleMesh, Vec<Surfel>)> {
+        let (mesh, offset, surfels) = self.read(file, base, field, budget)?;
+        let triangles = TriangleMesh::new(&mesh, offset, colouring)
+            .map_err(|e| e.in_file(&base.join(&self.path), ""))?;
+        Ok((triangles, surfels))
     }
 }
 
@@ -413,6 +465,11 @@ fn validate(spec: SceneSpec, path: &Path, mut budget: Budget) -> Result<Scene> {
     if let Some(near) = c.near {
         camera = camera.with_near(near).map_err(within("camera"))?;
     }
+    if let Some(samples) = c.spatial_samples {
+        camera = camera
+            .with_spatial_samples(samples)
+            .map_err(within("camera"))?;
+    }
     let shutter = Shutter::new(spec.shutter.open, spec.shutter.close, spec.shutter.shape)
         .map_err(within("shutter"))?;
     let lighting = match &spec.lighting {
@@ -462,7 +519,23 @@ fn validate_object(
         Some(other) => Colouring::from(other),
         None => Colouring::Own,
     };
-    let mut surfels = object_surfels(o, path, base, &field, budget)?;
+    let mesh = match &o.shape {
+        Shape::Mesh(shape) if shape.as_triangles(path, &format!("{field}.shape"))? => {
+            if o.spacing.is_some() {
+                return Err(Error::input(
+                    path,
+                    format!("{field}.spacing"),
+                    "a mesh is sampled into `shape.samples` surfels: remove this `spacing`",
+                ));
+            }
+            Some(shape.triangles(path, base, &format!("{field}.shape"), budget, colouring)?)
+        }
+        _ => None,
+    };
+    let (triangles, mut surfels) = match mesh {
+        Some((triangles, surfels)) => (Some(triangles), surfels),
+        None => (None, object_surfels(o, path, base, &field, budget)?),
+    };
     colouring.apply(&mut surfels);
     let mut keyframes = Vec::with_capacity(o.keyframe.len());
     // The previous keyframe's rotation as written: its unit axis (none for no rotation) and angle.
@@ -504,7 +577,10 @@ fn validate_object(
         });
     }
     let motion = Motion::new(keyframes).map_err(|e| e.in_file(path, &field))?;
-    Ok(Object::new(name, surfels, motion))
+    Ok(match triangles {
+        Some(mesh) => Object::triangles(name, mesh, surfels, motion),
+        None => Object::new(name, surfels, motion),
+    })
 }
 
 /// Why a keyframe's rotation, written as `axis` and `degrees`, cannot follow the `previous`
@@ -676,6 +752,7 @@ mod tests {
             path: path.into(),
             samples,
             centre,
+            draw: None,
         }
     }
 

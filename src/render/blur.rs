@@ -5,9 +5,10 @@
 //! ellipse itself is [`crate::project::motion_ellipse`]; coverage is composited in
 //! [`TIME_BINS`] bins of shutter time. Derivation, the widening of chained ellipses and the
 //! known leaks (which `tests/stiff.rs` bounds): docs/math.md, "Motion ellipse by summing
-//! covariances" and "Time bins for coverage".
+//! covariances" and "Time bins for coverage". `analytic` draws its scene's surfel objects here,
+//! over its triangles.
 
-use super::{draw, Render, Stats};
+use super::{draw, Exposure, Render, Stats};
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
     motion_ellipse, object_footprints_at, per_surfel, view_surfel, Cull, Instant, SurfelView,
@@ -77,13 +78,20 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
     // an instant.
     let image = if plan.any_moving() {
         draw(
-            scene,
+            plan,
+            Exposure::Shutter,
             &footprints,
             &TimeBins::<TIME_BINS>::over(&scene.shutter),
             &mut stats,
         )
     } else {
-        draw(scene, &footprints, &TimeBins::INSTANT, &mut stats)
+        draw(
+            plan,
+            Exposure::Shutter,
+            &footprints,
+            &TimeBins::INSTANT,
+            &mut stats,
+        )
     };
     Render { image, stats }
 }

@@ -8,7 +8,12 @@
 //! - [`Method::Hint`]: the object sharp at the flash plus a styled trail of motion ellipses
 //!   (Guan & Mueller §3.1, §4);
 //! - [`Method::Kernel3d`]: 3D spatio-temporal kernels integrated along each pixel ray, with exact
-//!   temporal visibility (Heinzle et al. 2010).
+//!   temporal visibility (Heinzle et al. 2010);
+//! - [`Method::Analytic`]: triangle meshes with analytic visibility in time (time-continuous
+//!   triangles, Gribel et al. 2010; Palmér §2.1–2.2).
+//!
+//! Objects made of triangles are drawn as triangles by `static`, `reference` and `analytic`
+//! ([`triangles`]), and as their sampled surfels by the others.
 
 mod abuffer;
 mod blur;
@@ -16,6 +21,7 @@ mod hint;
 mod kernel3d;
 mod reference;
 mod still;
+pub mod triangles;
 
 pub use crate::project::Culled;
 pub use crate::raster::{
@@ -26,6 +32,7 @@ pub(crate) use hint::trail_window;
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS};
 pub use reference::ReferenceStats;
+pub use triangles::{Exposure, TriangleStats, MAX_TRIANGLE_ITEMS};
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
@@ -43,6 +50,12 @@ pub const MAX_SUBFRAMES: usize = 1024;
 
 /// The sub-segment tolerance a method uses unless told otherwise, px.
 pub const DEFAULT_TOLERANCE_PX: f64 = 1.0;
+
+/// `analytic`'s sub-segment tolerance unless told otherwise, px. Corners move along chords of
+/// their curved paths, so the chords' departure is the method's only error in time: on a square
+/// turning 90° (`tests/triangles.rs`), RMSE against 2,048 reference frames was 0.032 at 1 px,
+/// 0.012 at 0.3, 0.0046 at 0.1, 0.0016 at 0.03 and 0.0006 at 0.01 px.
+pub const ANALYTIC_TOLERANCE_PX: f64 = 0.1;
 
 /// A rendering method with its own settings. [`Plan::new`] checks the values.
 #[derive(Clone, Debug, PartialEq)]
@@ -78,6 +91,12 @@ pub enum Method {
         /// How fragments are resolved.
         visibility: Visibility,
     },
+    /// Triangles with analytic visibility in time; surfel objects of the scene are drawn by
+    /// `blur` in front of them where they are nearer.
+    Analytic {
+        /// Largest distance of a curved screen path from its linear sub-segments, px.
+        tolerance_px: f64,
+    },
 }
 
 /// How `kernel3d` cuts the exposure into sub-frames.
@@ -109,6 +128,11 @@ impl Method {
         visibility: Visibility::Exact,
     };
 
+    /// `analytic` at its default tolerance.
+    pub const ANALYTIC: Method = Method::Analytic {
+        tolerance_px: ANALYTIC_TOLERANCE_PX,
+    };
+
     /// `hint` in `style` at the default tolerance.
     #[must_use]
     pub fn hint(style: Style) -> Method {
@@ -127,6 +151,7 @@ impl Method {
             Method::Reference { .. } => "reference",
             Method::Hint { .. } => "hint",
             Method::Kernel3d { .. } => "kernel3d",
+            Method::Analytic { .. } => "analytic",
         }
     }
 
@@ -136,6 +161,7 @@ impl Method {
     pub fn tolerance_px(&self) -> f64 {
         match *self {
             Method::Blur { tolerance_px }
+            | Method::Analytic { tolerance_px }
             | Method::Hint { tolerance_px, .. }
             | Method::Kernel3d {
                 subframes: Subframes::Planned { tolerance_px },
@@ -196,6 +222,8 @@ pub struct Stats {
     pub max_per_tile: usize,
     /// The most footprint–tile pairs binned for one frame (4 bytes each).
     pub tile_entries: usize,
+    /// What drawing triangles did (`static`, `reference`, `analytic` on triangle objects).
+    pub triangles: TriangleStats,
     /// What the method did beyond the shared counts.
     pub method: MethodStats,
 }
@@ -289,6 +317,7 @@ pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render 
             subframes,
             visibility,
         } => kernel3d::render(scene, plan, *subframes, *visibility),
+        Method::Analytic { .. } => blur::render(scene, plan),
     };
     // The reference tells each of its frames itself; the others are one frame.
     if let (Some(progress), false) = (progress, matches!(plan.method(), Method::Reference { .. })) {
@@ -297,40 +326,54 @@ pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render 
     render
 }
 
-/// The whole scene as `plan` draws it (with its level of detail) splatted at time `t`, as a layer,
-/// counting into `stats`.
+/// The surfels of the scene as `plan` draws them (with its level of detail) splatted at time `t`,
+/// as a layer, counting into `stats`.
 fn instant_layer(scene: &Scene, plan: &Plan, t: f64, stats: &mut Stats) -> Layer {
     rasterize_counted(
         scene,
         &still::footprints_at(scene, plan, t, &mut stats.culled),
         &TimeBins::INSTANT,
+        None,
         stats,
     )
 }
 
-/// Rasterize footprints with the scene's size and background in time bins `bins`, counting into
-/// `stats`.
+/// The image: `footprints` (of the surfel objects) rasterized in time bins `bins` over the
+/// objects `plan` draws as triangles, seen at `exposure`, counting into `stats`. Splats are left
+/// out of a pixel where triangles hide everything beyond their depth at every sample and
+/// instant, and composited over the triangles' image; without triangles, over the background.
 fn draw<const B: usize>(
-    scene: &Scene,
+    plan: &Plan,
+    exposure: Exposure,
     footprints: &[Footprint],
     bins: &TimeBins<B>,
     stats: &mut Stats,
 ) -> Framebuffer {
-    rasterize_counted(scene, footprints, bins, stats).over_colour(scene.background)
+    let scene = plan.scene();
+    if !plan.any_triangles() {
+        return rasterize_counted(scene, footprints, bins, None, stats)
+            .over_colour(scene.background);
+    }
+    let drawn = triangles::draw(plan, exposure);
+    stats.triangles.add(&drawn.stats);
+    let layer = rasterize_counted(scene, footprints, bins, Some(&drawn.hidden_beyond), stats);
+    layer.over(&drawn.image)
 }
 
-/// Rasterize footprints at the scene's size in time bins `bins`, counting into `stats`.
+/// Rasterize footprints at the scene's size in time bins `bins`, left out where they lie beyond
+/// `occluder`, counting into `stats`.
 fn rasterize_counted<const B: usize>(
     scene: &Scene,
     footprints: &[Footprint],
     bins: &TimeBins<B>,
+    occluder: Option<&[f32]>,
     stats: &mut Stats,
 ) -> Layer {
-    let (layer, raster) = rasterize(
-        footprints,
-        &Target::new(scene.camera.width, scene.camera.height),
-        bins,
-    );
+    let target = Target {
+        occluder,
+        ..Target::new(scene.camera.width, scene.camera.height)
+    };
+    let (layer, raster) = rasterize(footprints, &target, bins);
     stats.add_raster(&raster);
     layer
 }

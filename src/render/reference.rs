@@ -4,7 +4,7 @@
 //! converges as N grows. Still objects are projected once and their footprints reused by every
 //! frame: the plan says they cannot change.
 
-use super::{draw, MethodStats, Progress, Render, Stats};
+use super::{draw, Exposure, MethodStats, Progress, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::object_footprints_at;
@@ -69,7 +69,13 @@ pub(super) fn render(
                 &mut stats.culled,
             );
         }
-        let frame = draw(scene, &footprints, &TimeBins::INSTANT, &mut stats);
+        let frame = draw(
+            plan,
+            Exposure::Instant(t),
+            &footprints,
+            &TimeBins::INSTANT,
+            &mut stats,
+        );
         for (acc, p) in sum.iter_mut().zip(&frame.pixels) {
             for c in 0..3 {
                 acc[c] += mass * f64::from(p[c]);

@@ -1,15 +1,24 @@
-//! `static`: EWA surface splatting of the whole scene at one instant.
+//! `static`: EWA surface splatting of the whole scene at one instant (triangle objects drawn as
+//! triangles with a z-buffer).
 
-use super::{instant_layer, Render, Stats};
+use super::{draw, Exposure, Render, Stats};
 use crate::plan::Plan;
 use crate::project::{object_footprints_at, Culled};
-use crate::raster::Footprint;
+use crate::raster::{Footprint, TimeBins};
 use crate::scene::Scene;
 
-/// The scene splatted at time `t`, with the plan's level of detail.
+/// The scene at time `t`: surfels splatted with the plan's level of detail, triangles drawn as
+/// triangles.
 pub(super) fn render(scene: &Scene, plan: &Plan, t: f64) -> Render {
     let mut stats = Stats::default();
-    let image = instant_layer(scene, plan, t, &mut stats).over_colour(scene.background);
+    let footprints = footprints_at(scene, plan, t, &mut stats.culled);
+    let image = draw(
+        plan,
+        Exposure::Instant(t),
+        &footprints,
+        &TimeBins::INSTANT,
+        &mut stats,
+    );
     Render { image, stats }
 }
 

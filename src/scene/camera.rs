@@ -11,6 +11,12 @@ use crate::error::{Error, Result};
 /// Largest image side accepted, px.
 pub const MAX_IMAGE_SIDE: u32 = 8192;
 
+/// Spatial samples per pixel where triangles are drawn, unless the scene says otherwise.
+pub const DEFAULT_SPATIAL_SAMPLES: u32 = 4;
+
+/// Most spatial samples per pixel (an 8 × 8 grid).
+pub const MAX_SPATIAL_SAMPLES: u32 = 64;
+
 /// A pinhole camera with its image size.
 #[derive(Clone, Debug)]
 pub struct Camera {
@@ -26,6 +32,9 @@ pub struct Camera {
     pub height: u32,
     /// Points closer than this (camera-space depth) are not projected.
     pub near: f64,
+    /// Spatial samples per pixel where triangles are drawn: a square number, the centres of an
+    /// n × n grid of equal cells (docs/conventions.md, "Spatial samples").
+    pub spatial_samples: u32,
 }
 
 /// The 2×3 Jacobian of the projection at a camera-space point: rows are ∂x_px/∂p and ∂y_px/∂p.
@@ -90,7 +99,48 @@ impl Camera {
             width,
             height,
             near: 1e-3 * forward.length(),
+            spatial_samples: DEFAULT_SPATIAL_SAMPLES,
         })
+    }
+
+    /// The same camera drawing triangles with `samples` spatial samples per pixel: a square
+    /// number from 1 to [`MAX_SPATIAL_SAMPLES`]; an error names `spatial_samples`.
+    pub fn with_spatial_samples(mut self, samples: u32) -> Result<Camera> {
+        let side = f64::from(samples).sqrt().round() as u32;
+        if !(1..=MAX_SPATIAL_SAMPLES).contains(&samples) || side * side != samples {
+            return Err(Error::invalid(
+                "spatial_samples",
+                format!(
+                    "{samples}: samples per pixel form an n × n grid: 1, 4, 9, 16, 25, 36, 49 or {MAX_SPATIAL_SAMPLES}"
+                ),
+            ));
+        }
+        self.spatial_samples = samples;
+        Ok(self)
+    }
+
+    /// The spatial samples of pixel (0, 0) as offsets from its corner, in px: the centres of an
+    /// n × n grid of equal cells, row by row.
+    #[must_use]
+    pub fn sample_offsets(&self) -> Vec<[f64; 2]> {
+        let side = f64::from(self.spatial_samples).sqrt().round() as u32;
+        let step = 1.0 / f64::from(side);
+        (0..side)
+            .flat_map(|j| {
+                (0..side).map(move |i| [(f64::from(i) + 0.5) * step, (f64::from(j) + 0.5) * step])
+            })
+            .collect()
+    }
+
+    /// The camera-space direction of the ray through image point (x, y) px, scaled so that its
+    /// depth (−z) is 1.
+    #[must_use]
+    pub fn ray(&self, x: f64, y: f64) -> DVec3 {
+        DVec3::new(
+            (x - 0.5 * f64::from(self.width)) / self.focal_px,
+            (0.5 * f64::from(self.height) - y) / self.focal_px,
+            -1.0,
+        )
     }
 
     /// The same camera with its near plane at camera-space depth `near` (finite, positive).

@@ -6,10 +6,12 @@
 pub mod camera;
 pub mod motion;
 pub mod shutter;
+pub mod triangles;
 
 pub use camera::{Camera, MAX_IMAGE_SIDE};
 pub use motion::{Keyframe, Motion, Pose};
 pub use shutter::{Shutter, ShutterShape};
+pub use triangles::TriangleMesh;
 
 use crate::error::{Error, Result};
 use crate::surfels::Surfel;
@@ -90,13 +92,20 @@ impl Lighting {
     }
 }
 
-/// What an object is made of. Surfels today; the renderers of moving triangles and of 3D
-/// Gaussians will add their primitives here, each drawn natively by the methods that can and
-/// sampled into surfels by the others (docs/architecture.md, "Module tree").
+/// What an object is made of. Each primitive is drawn natively by the methods that can and
+/// sampled into surfels for the others (docs/architecture.md, "Module tree").
 #[derive(Clone, Debug, PartialEq)]
 pub enum Geometry {
     /// Oriented Gaussian disks in object space.
     Surfels(Vec<Surfel>),
+    /// A triangle mesh: drawn as triangles by `static`, `reference` and `analytic`, and as the
+    /// surfels sampled from it by `blur`, `hint` and `kernel3d`.
+    Triangles {
+        /// The triangles.
+        mesh: TriangleMesh,
+        /// Surfels sampled from the same surface.
+        surfels: Vec<Surfel>,
+    },
 }
 
 /// One object: its geometry in object space and its motion.
@@ -122,11 +131,36 @@ impl Object {
         }
     }
 
+    /// An object called `name` drawn as the triangles of `mesh` where the method can, and as
+    /// `surfels` (sampled from the same surface) where it cannot, moving as `motion` says.
+    #[must_use]
+    pub fn triangles(
+        name: impl Into<String>,
+        mesh: TriangleMesh,
+        surfels: Vec<Surfel>,
+        motion: Motion,
+    ) -> Object {
+        Object {
+            name: name.into(),
+            geometry: Geometry::Triangles { mesh, surfels },
+            motion,
+        }
+    }
+
     /// The surfels the splat renderers draw.
     #[must_use]
     pub fn surfels(&self) -> &[Surfel] {
         match &self.geometry {
-            Geometry::Surfels(surfels) => surfels,
+            Geometry::Surfels(surfels) | Geometry::Triangles { surfels, .. } => surfels,
+        }
+    }
+
+    /// The triangles, for an object made of them.
+    #[must_use]
+    pub fn mesh(&self) -> Option<&TriangleMesh> {
+        match &self.geometry {
+            Geometry::Surfels(_) => None,
+            Geometry::Triangles { mesh, .. } => Some(mesh),
         }
     }
 }

@@ -1,0 +1,655 @@
+//! Triangle objects drawn as triangles: at an instant with a z-buffer per spatial sample
+//! (`static` and each `reference` frame), and over the exposure with analytic visibility in time
+//! (`analytic`: time-continuous triangles, interval lists and their resolve, deferred shading;
+//! Gribel et al. 2010 as summarised in Palmér §2.1–2.2).
+//!
+//! Each triangle of each object becomes one item per plan sub-segment (one for a still object or
+//! an instant), with its corners' camera-space positions at the segment's ends and its pixel
+//! bounds. Items are binned into the rasterizer's tiles; each task renders a row of tiles, and
+//! in a tile every item visits the spatial samples inside its bounds. A sample's colour is the
+//! shutter-weighted integral of what is visible there, shaded at three Gauss–Legendre times per
+//! visible piece; a pixel is the mean of its samples (a box filter over an n × n grid).
+
+pub(crate) mod intervals;
+pub(crate) mod tct;
+
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+use crate::framebuffer::Framebuffer;
+use crate::plan::{ObjectMotion, Plan};
+use crate::raster::TILE_PX;
+use crate::raster::{TileGrid, TileLists};
+use crate::scene::{Object, Scene, TriangleMesh};
+use intervals::{resolve, Interval, ResolveScratch, Visible};
+use tct::{EdgeFunctions, MovingTriangle};
+
+/// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
+/// render may hold.
+pub const MAX_TRIANGLE_ITEMS: usize = 1 << 24;
+
+/// Most intervals one spatial sample keeps: past it the list is resolved to its visible pieces
+/// (Gribel's compression), and what still does not fit is dropped and counted.
+pub const MAX_INTERVALS_PER_SAMPLE: usize = 64;
+
+/// Gauss–Legendre nodes and weights on [−1, 1], three points: exact for polynomials of degree 5,
+/// enough for a Lambert term turning within one visible piece.
+const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
+    (-0.774_596_669_241_483_4, 5.0 / 9.0),
+    (0.0, 8.0 / 9.0),
+    (0.774_596_669_241_483_4, 5.0 / 9.0),
+];
+
+/// What drawing triangles did, for `--explain`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TriangleStats {
+    /// Triangle items drawn (a triangle over one sub-segment, or at one instant).
+    pub items: usize,
+    /// Items left out because a corner stayed behind the near plane the whole time.
+    pub behind_near: usize,
+    /// Intervals inserted into sample lists (`analytic`).
+    pub intervals: usize,
+    /// The longest interval list of one sample.
+    pub peak_per_sample: usize,
+    /// Times a sample's full list was resolved to its visible pieces to make room.
+    pub compressed: usize,
+    /// Intervals dropped because a list was still full after compression.
+    pub dropped: usize,
+    /// Spatial samples per pixel.
+    pub spatial_samples: u32,
+}
+
+impl TriangleStats {
+    /// Human-readable account for `--explain` (empty when no triangle was drawn).
+    #[must_use]
+    pub fn explain(&self) -> String {
+        if self.items == 0 && self.behind_near == 0 {
+            return String::new();
+        }
+        let mut out = format!(
+            "triangles: {} items (triangle × sub-segment or instant), {} spatial samples per pixel; {} left out behind the near plane\n",
+            self.items, self.spatial_samples, self.behind_near
+        );
+        if self.intervals > 0 {
+            out.push_str(&format!(
+                "  analytic visibility: {} intervals, at most {} on one sample (cap {MAX_INTERVALS_PER_SAMPLE}); {} lists compressed, {} intervals dropped\n",
+                self.intervals, self.peak_per_sample, self.compressed, self.dropped
+            ));
+        }
+        out
+    }
+
+    /// Add another render's counts (the reference's frames).
+    pub(crate) fn add(&mut self, other: &TriangleStats) {
+        self.items += other.items;
+        self.behind_near += other.behind_near;
+        self.intervals += other.intervals;
+        self.peak_per_sample = self.peak_per_sample.max(other.peak_per_sample);
+        self.compressed += other.compressed;
+        self.dropped += other.dropped;
+        self.spatial_samples = self.spatial_samples.max(other.spatial_samples);
+    }
+}
+
+/// When the triangles are seen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Exposure {
+    /// At one instant, with a z-buffer.
+    Instant(f64),
+    /// Over the whole shutter, with analytic visibility.
+    Shutter,
+}
+
+/// One object's corners in camera space at the ends of one of its sub-segments.
+struct Segment {
+    time: [f64; 2],
+    start: Vec<DVec3>,
+    end: Vec<DVec3>,
+    /// Object → world rotation at the ends, for shading normals (interpolated linearly in
+    /// between and normalized, as Palmér §2.3.2 interpolates normals).
+    rotation: [DMat3; 2],
+    /// Whether nothing changes over the segment (a still object): shaded once per piece.
+    still: bool,
+}
+
+/// A triangle item's corners over its segment.
+struct Placed {
+    triangle: MovingTriangle,
+    edges: EdgeFunctions,
+    /// The part of the segment (as fractions of it) when every corner is in front of the near
+    /// plane.
+    window: [f64; 2],
+    /// The segment's start and end time.
+    time: [f64; 2],
+}
+
+/// One triangle over one sub-segment.
+#[derive(Clone, Copy)]
+struct Item {
+    object: u32,
+    segment: u32,
+    triangle: u32,
+    /// Pixel bounds [x0, y0, x1, y1).
+    bounds: [u32; 4],
+}
+
+/// Triangle objects prepared for one exposure.
+struct Prepared<'a> {
+    scene: &'a Scene,
+    exposure: Exposure,
+    objects: Vec<(&'a Object, &'a TriangleMesh, Vec<Segment>)>,
+    items: Vec<Item>,
+    /// Triangle × segment pairs left out, wholly behind the near plane.
+    behind_near: usize,
+}
+
+/// An image of the triangle objects and where they hide what lies behind.
+pub struct TriangleImage {
+    /// Linear RGB over the scene's background.
+    pub image: Framebuffer,
+    /// Per pixel, the depth behind which everything is hidden by triangles at every sample and
+    /// instant (+∞ where some sample sees past them): the occluder for surfels drawn after.
+    pub hidden_beyond: Vec<f32>,
+    /// What was drawn.
+    pub stats: TriangleStats,
+}
+
+/// Draw the triangle objects of `plan` (those [`Plan::draws_triangles`] says) over the scene's
+/// background, at `exposure`. The plan has checked that their items stay within
+/// [`MAX_TRIANGLE_ITEMS`].
+#[must_use]
+pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
+    Prepared::new(plan, exposure).render()
+}
+
+impl<'a> Prepared<'a> {
+    fn new(plan: &Plan<'a>, exposure: Exposure) -> Prepared<'a> {
+        let scene = plan.scene();
+        let camera = &scene.camera;
+        let mut objects = Vec::new();
+        for (index, (object, object_plan)) in scene.objects.iter().zip(&plan.objects).enumerate() {
+            if !plan.draws_triangles(index) {
+                continue;
+            }
+            let Some(mesh) = object.mesh() else {
+                continue;
+            };
+            let times: Vec<[f64; 2]> = match (exposure, &object_plan.motion) {
+                (Exposure::Instant(t), _) => vec![[t, t]],
+                (Exposure::Shutter, ObjectMotion::Still) => {
+                    let middle = scene.shutter.middle();
+                    vec![[middle, middle]]
+                }
+                (Exposure::Shutter, ObjectMotion::Moving { segments, .. }) => segments.clone(),
+            };
+            let corners_at = |t: f64| {
+                let to_view = camera.view * object.motion.pose_at(t).to_affine();
+                mesh.positions
+                    .iter()
+                    .map(|&p| to_view.transform_point3(p))
+                    .collect::<Vec<DVec3>>()
+            };
+            let segments: Vec<Segment> = times
+                .iter()
+                .map(|&[t0, t1]| {
+                    let start = corners_at(t0);
+                    let end = if t1 == t0 {
+                        start.clone()
+                    } else {
+                        corners_at(t1)
+                    };
+                    let rotation = [t0, t1].map(|t| object.motion.pose_at(t).rotation_matrix());
+                    Segment {
+                        rotation,
+                        still: t1 == t0,
+                        time: match (exposure, &object_plan.motion) {
+                            (Exposure::Shutter, ObjectMotion::Still) => {
+                                [scene.shutter.open, scene.shutter.close]
+                            }
+                            _ => [t0, t1],
+                        },
+                        start,
+                        end,
+                    }
+                })
+                .collect();
+            objects.push((object, mesh, segments));
+        }
+        let count: usize = objects
+            .iter()
+            .map(|(_, mesh, segments)| mesh.triangles.len() * segments.len())
+            .sum();
+        let mut prepared = Prepared {
+            scene,
+            exposure,
+            objects,
+            items: Vec::new(),
+            behind_near: 0,
+        };
+        (prepared.items, prepared.behind_near) = prepared.make_items(count);
+        prepared
+    }
+
+    /// The segment of `item`.
+    fn segment(&self, item: &Item) -> &Segment {
+        &self.objects[item.object as usize].2[item.segment as usize]
+    }
+
+    /// The corners of `item` over its segment.
+    fn corners(&self, item: &Item) -> MovingTriangle {
+        let (_, mesh, segments) = &self.objects[item.object as usize];
+        let segment = &segments[item.segment as usize];
+        let corners = mesh.triangles[item.triangle as usize];
+        let start = corners.map(|v| segment.start[v as usize]);
+        let end = corners.map(|v| segment.end[v as usize]);
+        MovingTriangle {
+            start,
+            delta: [0, 1, 2].map(|k| end[k] - start[k]),
+        }
+    }
+
+    /// The moving triangle of `item`, placed in its segment.
+    fn triangle(&self, item: &Item) -> Placed {
+        let segment = self.segment(item);
+        let triangle = self.corners(item);
+        let window = triangle
+            .in_front(self.scene.camera.near)
+            .unwrap_or([0.0, 0.0]);
+        Placed {
+            edges: triangle.edge_functions(),
+            triangle,
+            window,
+            time: segment.time,
+        }
+    }
+
+    /// Every triangle over every segment that is in front of the near plane some of the time and
+    /// on screen, with its pixel bounds: the projections of its corners at the ends of its time
+    /// in front (a segment's straight path in camera space projects to a straight path on
+    /// screen, so they bound it), widened by a pixel.
+    /// Also returns how many were left out behind the near plane. `count` is the number of
+    /// triangle × segment pairs.
+    fn make_items(&self, count: usize) -> (Vec<Item>, usize) {
+        let camera = &self.scene.camera;
+        let (width, height) = (camera.width, camera.height);
+        let mut items = Vec::with_capacity(count);
+        let mut behind_near = 0;
+        for (o, (_, mesh, segments)) in self.objects.iter().enumerate() {
+            for s in 0..segments.len() {
+                for t in 0..mesh.triangles.len() {
+                    let mut item = Item {
+                        object: o as u32,
+                        segment: s as u32,
+                        triangle: t as u32,
+                        bounds: [0; 4],
+                    };
+                    let Placed {
+                        triangle, window, ..
+                    } = self.triangle(&item);
+                    if !(window[1] > window[0]) {
+                        behind_near += 1;
+                        continue;
+                    }
+                    if mesh.closed && triangle.back_facing_throughout() {
+                        continue;
+                    }
+                    // A corner at the near plane itself (a window's end) may round to behind it:
+                    // it projects far off screen anyway, so the whole image bounds it.
+                    let (mut lo, mut hi) = (glam::DVec2::INFINITY, glam::DVec2::NEG_INFINITY);
+                    for s in window {
+                        for p in triangle.at(s) {
+                            let (screen_lo, screen_hi) = match camera.project(p) {
+                                Some((screen, _)) => (screen, screen),
+                                None => (glam::DVec2::NEG_INFINITY, glam::DVec2::INFINITY),
+                            };
+                            lo = lo.min(screen_lo);
+                            hi = hi.max(screen_hi);
+                        }
+                    }
+                    let clip = |v: f64, max: u32| v.clamp(0.0, f64::from(max)) as u32;
+                    let bounds = [
+                        clip((lo.x - 1.0).floor(), width),
+                        clip((lo.y - 1.0).floor(), height),
+                        clip((hi.x + 1.0).ceil(), width),
+                        clip((hi.y + 1.0).ceil(), height),
+                    ];
+                    if bounds[0] < bounds[2] && bounds[1] < bounds[3] {
+                        item.bounds = bounds;
+                        items.push(item);
+                    }
+                }
+            }
+        }
+        (items, behind_near)
+    }
+
+    fn render(&self) -> TriangleImage {
+        let camera = &self.scene.camera;
+        let (width, height) = (camera.width, camera.height);
+        let grid = TileGrid::new(width, height);
+        let lists = TileLists::new(&grid, self.items.len(), |index, visit| {
+            let [x0, y0, x1, y1] = self.items[index as usize].bounds;
+            for ty in y0 / TILE_PX..=(y1 - 1) / TILE_PX {
+                for tx in x0 / TILE_PX..=(x1 - 1) / TILE_PX {
+                    visit(grid.index(tx, ty));
+                }
+            }
+        });
+        let offsets = camera.sample_offsets();
+        let band = width as usize * TILE_PX as usize;
+        let mut image = Framebuffer::filled(width, height, self.scene.background);
+        let mut hidden_beyond = vec![f32::INFINITY; width as usize * height as usize];
+        let stats: Vec<TriangleStats> = (image.pixels.par_chunks_mut(band))
+            .zip(hidden_beyond.par_chunks_mut(band))
+            .enumerate()
+            .map(|(ty, (pixels, hidden))| {
+                let mut scratch = Scratch::default();
+                let mut stats = TriangleStats::default();
+                for tile in grid.row(ty) {
+                    let bounds = grid.pixels(tile);
+                    self.render_tile(lists.list(tile), bounds, &offsets, &mut scratch, &mut stats);
+                    let [x0, y0, x1, _] = bounds;
+                    let w = (x1 - x0) as usize;
+                    for (i, (colour, hide)) in scratch.pixels.iter().enumerate() {
+                        let at = (i / w + (y0 - ty as u32 * TILE_PX) as usize) * width as usize
+                            + x0 as usize
+                            + i % w;
+                        pixels[at] = *colour;
+                        hidden[at] = *hide;
+                    }
+                }
+                stats
+            })
+            .collect();
+        let mut total = TriangleStats {
+            items: self.items.len(),
+            behind_near: self.behind_near,
+            spatial_samples: camera.spatial_samples,
+            ..TriangleStats::default()
+        };
+        for s in &stats {
+            total.add(s);
+        }
+        TriangleImage {
+            image,
+            hidden_beyond,
+            stats: total,
+        }
+    }
+
+    /// Render one tile into `scratch.pixels` (colour and hidden-beyond depth, row by row).
+    fn render_tile(
+        &self,
+        list: &[u32],
+        [x0, y0, x1, y1]: [u32; 4],
+        offsets: &[[f64; 2]],
+        scratch: &mut Scratch,
+        stats: &mut TriangleStats,
+    ) {
+        let camera = &self.scene.camera;
+        let w = (x1 - x0) as usize;
+        let per_pixel = offsets.len();
+        let samples = w * (y1 - y0) as usize * per_pixel;
+        scratch.reset(samples);
+        for &index in list {
+            let item = &self.items[index as usize];
+            let placed = self.triangle(item);
+            let [ix0, iy0, ix1, iy1] = item.bounds;
+            for y in iy0.max(y0)..iy1.min(y1) {
+                for x in ix0.max(x0)..ix1.min(x1) {
+                    let pixel = (y - y0) as usize * w + (x - x0) as usize;
+                    for (k, [ox, oy]) in offsets.iter().enumerate() {
+                        let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
+                        let sample = pixel * per_pixel + k;
+                        match self.exposure {
+                            Exposure::Instant(_) => scratch.nearer(sample, &placed, d, index),
+                            Exposure::Shutter => scratch.insert(sample, &placed, d, index, stats),
+                        }
+                    }
+                }
+            }
+        }
+        let background = self.scene.background.map(f64::from);
+        let mut pixels = std::mem::take(&mut scratch.pixels);
+        pixels.clear();
+        for pixel in 0..w * (y1 - y0) as usize {
+            let (x, y) = (x0 + (pixel % w) as u32, y0 + (pixel / w) as u32);
+            let mut sum = [0.0f64; 3];
+            let mut hidden = f64::NEG_INFINITY;
+            for (k, [ox, oy]) in offsets.iter().enumerate() {
+                let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
+                let (colour, beyond) =
+                    self.sample_colour(scratch, pixel * per_pixel + k, d, background);
+                for c in 0..3 {
+                    sum[c] += colour[c];
+                }
+                hidden = hidden.max(beyond);
+            }
+            let n = per_pixel as f64;
+            pixels.push((sum.map(|c| (c / n) as f32), hidden as f32));
+        }
+        scratch.pixels = pixels;
+    }
+
+    /// The colour of one sample over the exposure, and the depth beyond which it sees nothing.
+    fn sample_colour(
+        &self,
+        scratch: &mut Scratch,
+        sample: usize,
+        d: DVec3,
+        background: [f64; 3],
+    ) -> ([f64; 3], f64) {
+        match self.exposure {
+            Exposure::Instant(_) => match scratch.nearest[sample] {
+                Some((depth, index)) => {
+                    let item = &self.items[index as usize];
+                    (self.shade(item, &self.corners(item), d, 0.0), depth)
+                }
+                None => (background, f64::INFINITY),
+            },
+            Exposure::Shutter => {
+                let Scratch {
+                    lists,
+                    resolving,
+                    visible,
+                    ..
+                } = scratch;
+                visible.clear();
+                resolve(&lists[sample], resolving, visible);
+                let shutter = &self.scene.shutter;
+                let mut colour = [0.0f64; 3];
+                let mut covered = 0.0;
+                let mut farthest = f64::NEG_INFINITY;
+                for piece in visible.iter() {
+                    let mass = shutter.moments(piece.t[0], piece.t[1]).mass;
+                    if !(mass > 0.0) {
+                        continue;
+                    }
+                    let mean = self.piece_colour(piece, d);
+                    for c in 0..3 {
+                        colour[c] += mass * mean[c];
+                    }
+                    covered += mass;
+                    farthest = farthest.max(piece.depth[0].max(piece.depth[1]));
+                }
+                let uncovered = (1.0 - covered).max(0.0);
+                for c in 0..3 {
+                    colour[c] += uncovered * background[c];
+                }
+                let beyond = if uncovered < 1e-9 {
+                    farthest
+                } else {
+                    f64::INFINITY
+                };
+                (colour, beyond)
+            }
+        }
+    }
+
+    /// Mean colour of a visible piece, weighted by the shutter: three Gauss–Legendre times.
+    fn piece_colour(&self, piece: &Visible, d: DVec3) -> [f64; 3] {
+        let item = &self.items[piece.item as usize];
+        let triangle = self.corners(item);
+        let segment = self.segment(item);
+        if segment.still {
+            return self.shade(item, &triangle, d, 0.0);
+        }
+        let [t0, t1] = segment.time;
+        let (centre, half) = (
+            0.5 * (piece.t[0] + piece.t[1]),
+            0.5 * (piece.t[1] - piece.t[0]),
+        );
+        let mut sum = [0.0; 3];
+        let mut weight = 0.0;
+        for (node, w) in GAUSS_LEGENDRE_3 {
+            let t = centre + half * node;
+            let w = w * self.scene.shutter.weight(t).max(1e-300);
+            let s = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+            let colour = self.shade(item, &triangle, d, s);
+            for c in 0..3 {
+                sum[c] += w * colour[c];
+            }
+            weight += w;
+        }
+        sum.map(|c| c / weight)
+    }
+
+    /// The colour the ray `d` sees on `item` at segment fraction `s`: corner colours and normals
+    /// interpolated perspective-correctly, the normal turned to face the eye (both sides of a
+    /// triangle are drawn), Lambert shading.
+    fn shade(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
+        let (_, mesh, _) = &self.objects[item.object as usize];
+        let weights = triangle.barycentric(d, s);
+        let corners = mesh.triangles[item.triangle as usize];
+        let albedo = [0, 1, 2].map(|c| {
+            (0..3)
+                .map(|k| weights[k] * f64::from(mesh.colours[corners[k] as usize][c]))
+                .sum::<f64>() as f32
+        });
+        if !self.scene.lighting.is_lit() {
+            return albedo.map(f64::from);
+        }
+        let normals = mesh.normals[item.triangle as usize];
+        let local: DVec3 = (0..3).map(|k| normals[k] * weights[k]).sum();
+        let [r0, r1] = self.segment(item).rotation;
+        let mut world = (r0 * local).lerp(r1 * local, s).normalize_or_zero();
+        let view = self.scene.camera.view.transform_vector3(world);
+        if view.dot(d) > 0.0 {
+            world = -world;
+        }
+        self.scene.lighting.shade(albedo, world).map(f64::from)
+    }
+}
+
+/// Per-tile working memory, reused from tile to tile.
+#[derive(Default)]
+struct Scratch {
+    /// `Instant`: the nearest (depth, item) per sample.
+    nearest: Vec<Option<(f64, u32)>>,
+    /// `Shutter`: the interval list per sample.
+    lists: Vec<Vec<Interval>>,
+    resolving: ResolveScratch,
+    visible: Vec<Visible>,
+    covered: Vec<[f64; 2]>,
+    knots: Vec<[f64; 2]>,
+    /// The finished pixels: colour and hidden-beyond depth.
+    pixels: Vec<([f32; 3], f32)>,
+}
+
+impl Scratch {
+    fn reset(&mut self, samples: usize) {
+        self.nearest.clear();
+        self.nearest.resize(samples, None);
+        if self.lists.len() < samples {
+            self.lists.resize_with(samples, Vec::new);
+        }
+        for list in &mut self.lists[..samples] {
+            list.clear();
+        }
+    }
+
+    /// Z-buffer test at an instant: keep `item` at `sample` if it covers it nearer.
+    fn nearer(&mut self, sample: usize, placed: &Placed, d: DVec3, item: u32) {
+        let triangle = &placed.triangle;
+        if placed.window != [0.0, 1.0] {
+            return;
+        }
+        if !placed.edges.inside_at_start(d) {
+            return;
+        }
+        if let Some(depth) = triangle.depth(d, 0.0) {
+            if self.nearest[sample].is_none_or(|(z, _)| depth < z) {
+                self.nearest[sample] = Some((depth, item));
+            }
+        }
+    }
+
+    /// Insert the intervals during which the placed triangle covers `sample`, with their
+    /// depth, in absolute time.
+    fn insert(
+        &mut self,
+        sample: usize,
+        placed: &Placed,
+        d: DVec3,
+        item: u32,
+        stats: &mut TriangleStats,
+    ) {
+        let Placed {
+            triangle,
+            edges,
+            window,
+            time: [t0, t1],
+        } = placed;
+        let (window, t0, t1) = (*window, *t0, *t1);
+        if !(window[1] > window[0]) {
+            return;
+        }
+        self.covered.clear();
+        edges.covered(d, window, &mut self.covered);
+        for k in 0..self.covered.len() {
+            let span = self.covered[k];
+            self.knots.clear();
+            let Some(z0) = triangle.depth(d, span[0]) else {
+                continue;
+            };
+            if triangle.depth_knots(d, span, &mut self.knots).is_none() {
+                continue;
+            }
+            let mut previous = [span[0], z0];
+            for j in 0..self.knots.len() {
+                let knot = self.knots[j];
+                let interval = Interval {
+                    t: [t0 + (t1 - t0) * previous[0], t0 + (t1 - t0) * knot[0]],
+                    depth: [previous[1], knot[1]],
+                    item,
+                };
+                previous = knot;
+                self.push(sample, interval, stats);
+            }
+        }
+    }
+
+    /// Add one interval to a sample's list, compressing a full list first.
+    fn push(&mut self, sample: usize, interval: Interval, stats: &mut TriangleStats) {
+        if self.lists[sample].len() >= MAX_INTERVALS_PER_SAMPLE {
+            stats.compressed += 1;
+            self.visible.clear();
+            resolve(&self.lists[sample], &mut self.resolving, &mut self.visible);
+            let list = &mut self.lists[sample];
+            list.clear();
+            list.extend(self.visible.iter().map(|v| Interval {
+                t: v.t,
+                depth: v.depth,
+                item: v.item,
+            }));
+        }
+        let list = &mut self.lists[sample];
+        if list.len() >= MAX_INTERVALS_PER_SAMPLE {
+            stats.dropped += 1;
+            return;
+        }
+        list.push(interval);
+        stats.intervals += 1;
+        stats.peak_per_sample = stats.peak_per_sample.max(list.len());
+    }
+}

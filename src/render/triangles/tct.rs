@@ -1,0 +1,315 @@
+//! Time-continuous triangles (Akenine-Möller et al. 2007; Gribel et al. 2010, summarised in
+//! Palmér §2.1): each corner moves linearly in camera space over a sub-segment, p(s) = q + s·(r − q)
+//! for s in [0, 1], and a spatial sample's ray is inside the triangle when its three edge functions
+//! agree in sign. With the eye at the origin and the sample's ray direction d, the edge function
+//! of edge (a, b) is the triple product e(s) = d · (a(s) × b(s)), a quadratic in s; the sample is
+//! inside where all three are ≥ 0 or all ≤ 0 (either winding, so open meshes show both sides).
+//! The visible depth along the ray is the rational function λ(s) = (n·a)/(n·d) with
+//! n = (b − a) × (c − a), cubic over quadratic; docs/math.md, "Time-continuous triangles".
+
+use crate::math::quadratic_roots;
+use glam::DVec3;
+
+/// Most pieces a covered interval's depth is cut into where a line does not follow it.
+pub const MAX_DEPTH_PIECES: usize = 16;
+
+/// A linear depth piece may stray from the exact depth at its middle by this share of the depth
+/// before it is halved (Palmér §5, "Adaptive depth sampling").
+pub const DEPTH_TOLERANCE: f64 = 1e-3;
+
+/// A triangle whose corners move linearly in camera space over one sub-segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MovingTriangle {
+    /// Corners at s = 0.
+    pub start: [DVec3; 3],
+    /// Corner displacement from s = 0 to s = 1.
+    pub delta: [DVec3; 3],
+}
+
+/// An edge function's coefficients as vectors: e(s) = d·(a s² + b s + c).
+#[derive(Clone, Copy, Debug)]
+struct EdgeCoefficients {
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+}
+
+/// The three edge functions of a moving triangle, worked out once for all its samples.
+#[derive(Clone, Copy, Debug)]
+pub struct EdgeFunctions([EdgeCoefficients; 3]);
+
+impl MovingTriangle {
+    /// The corners at s.
+    #[must_use]
+    pub fn at(&self, s: f64) -> [DVec3; 3] {
+        [0, 1, 2].map(|k| self.start[k] + self.delta[k] * s)
+    }
+
+    /// The part of [0, 1] when every corner lies at least `near` deep (camera-space −z), or
+    /// `None` when there is none: the triangle is clipped in time, not in space, where a corner
+    /// crosses the near plane.
+    #[must_use]
+    pub fn in_front(&self, near: f64) -> Option<[f64; 2]> {
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for k in 0..3 {
+            // depth(s) = −(z0 + s·dz) ≥ near.
+            let (z0, dz) = (self.start[k].z, self.delta[k].z);
+            let depth0 = -z0;
+            let slope = -dz;
+            if slope == 0.0 {
+                if !(depth0 >= near) {
+                    return None;
+                }
+            } else {
+                let crossing = (near - depth0) / slope;
+                if slope > 0.0 {
+                    lo = lo.max(crossing);
+                } else {
+                    hi = hi.min(crossing);
+                }
+            }
+        }
+        (lo < hi && lo.is_finite() && hi.is_finite()).then_some([lo, hi])
+    }
+
+    /// Whether the triangle faces away from the eye (at the origin) for all of [0, 1], wound
+    /// counter-clockwise seen from its front. It faces the eye where det[a, b, c] < 0; the
+    /// determinant of three linearly moving corners is a cubic in s whose Bernstein coefficients
+    /// are the means of the determinants with each corner taken at s = 0 or 1 (it is trilinear),
+    /// so when all four are positive it is positive throughout.
+    #[must_use]
+    pub fn back_facing_throughout(&self) -> bool {
+        let end = self.at(1.0);
+        let [a, b, c] = self.start;
+        let [a1, b1, c1] = end;
+        let det = |p: DVec3, q: DVec3, r: DVec3| p.dot(q.cross(r));
+        let bernstein = [
+            det(a, b, c),
+            (det(a1, b, c) + det(a, b1, c) + det(a, b, c1)) / 3.0,
+            (det(a, b1, c1) + det(a1, b, c1) + det(a1, b1, c)) / 3.0,
+            det(a1, b1, c1),
+        ];
+        bernstein.iter().all(|&x| x > 0.0)
+    }
+
+    /// Its edge functions.
+    #[must_use]
+    pub fn edge_functions(&self) -> EdgeFunctions {
+        EdgeFunctions([(0, 1), (1, 2), (2, 0)].map(|(i, j)| {
+            let (p, q) = (self.start[i], self.start[j]);
+            let (dp, dq) = (self.delta[i], self.delta[j]);
+            EdgeCoefficients {
+                a: dp.cross(dq),
+                b: p.cross(dq) + dp.cross(q),
+                c: p.cross(q),
+            }
+        }))
+    }
+
+    /// Depth along the ray `d` (whose depth component is 1) where it meets the triangle's plane
+    /// at s: (n·a)/(n·d). `None` when the plane is edge-on to the ray or not in front.
+    #[must_use]
+    pub fn depth(&self, d: DVec3, s: f64) -> Option<f64> {
+        let [a, b, c] = self.at(s);
+        let n = (b - a).cross(c - a);
+        let depth = n.dot(a) / n.dot(d);
+        (depth.is_finite() && depth > 0.0).then_some(depth)
+    }
+
+    /// Perspective-correct barycentric weights of the ray `d`'s hit at s: each corner's weight
+    /// is the opposite edge's triple product, normalized.
+    #[must_use]
+    pub fn barycentric(&self, d: DVec3, s: f64) -> [f64; 3] {
+        let [a, b, c] = self.at(s);
+        let w = [d.dot(b.cross(c)), d.dot(c.cross(a)), d.dot(a.cross(b))];
+        let sum = w[0] + w[1] + w[2];
+        if sum != 0.0 && sum.is_finite() {
+            w.map(|x| x / sum)
+        } else {
+            [1.0 / 3.0; 3]
+        }
+    }
+
+    /// The depth over [s0, s1] as linear pieces (s, depth at s) joined end to end: halved where
+    /// the line between a piece's ends misses the exact depth at its middle by more than
+    /// [`DEPTH_TOLERANCE`] of it, up to [`MAX_DEPTH_PIECES`]. Appends the knots after the first
+    /// to `knots` (the caller holds the first). `None` when the depth is undefined somewhere.
+    pub fn depth_knots(
+        &self,
+        d: DVec3,
+        [s0, s1]: [f64; 2],
+        knots: &mut Vec<[f64; 2]>,
+    ) -> Option<()> {
+        let z0 = self.depth(d, s0)?;
+        let z1 = self.depth(d, s1)?;
+        self.refine(d, [s0, z0], [s1, z1], MAX_DEPTH_PIECES, knots)
+    }
+
+    fn refine(
+        &self,
+        d: DVec3,
+        [s0, z0]: [f64; 2],
+        [s1, z1]: [f64; 2],
+        budget: usize,
+        knots: &mut Vec<[f64; 2]>,
+    ) -> Option<()> {
+        if budget >= 2 {
+            let sm = 0.5 * (s0 + s1);
+            let zm = self.depth(d, sm)?;
+            if (zm - 0.5 * (z0 + z1)).abs() > DEPTH_TOLERANCE * zm {
+                self.refine(d, [s0, z0], [sm, zm], budget / 2, knots)?;
+                return self.refine(d, [sm, zm], [s1, z1], budget / 2, knots);
+            }
+        }
+        knots.push([s1, z1]);
+        Some(())
+    }
+}
+
+impl EdgeFunctions {
+    /// The sub-intervals of `window` (within [0, 1]) during which the ray along `d` is inside
+    /// the triangle, appended to `out` in time order. The roots of the three edge quadratics cut
+    /// the window; each piece is tested at its middle, so an inaccurate or double root can move
+    /// a boundary by its error but never turn a piece inside out.
+    pub fn covered(&self, d: DVec3, window: [f64; 2], out: &mut Vec<[f64; 2]>) {
+        let mut cuts = [0.0f64; 8];
+        let mut n = 0;
+        cuts[n] = window[0];
+        n += 1;
+        let coefficients = self.0.map(|e| [d.dot(e.a), d.dot(e.b), d.dot(e.c)]);
+        for [a, b, c] in coefficients {
+            let (roots, count) = quadratic_roots(a, b, c);
+            for &r in &roots[..count] {
+                if r > window[0] && r < window[1] {
+                    cuts[n] = r;
+                    n += 1;
+                }
+            }
+        }
+        cuts[n] = window[1];
+        n += 1;
+        let cuts = &mut cuts[..n];
+        cuts.sort_unstable_by(f64::total_cmp);
+        let inside = |s: f64| {
+            let values = coefficients.map(|[a, b, c]| (a * s + b) * s + c);
+            let positive = values.iter().all(|&v| v >= 0.0);
+            let negative = values.iter().all(|&v| v <= 0.0);
+            // All three zero: the ray lies in the plane of an edge-on triangle, which covers
+            // nothing.
+            (positive || negative) && values.iter().any(|&v| v != 0.0)
+        };
+        for pair in cuts.windows(2) {
+            let (s0, s1) = (pair[0], pair[1]);
+            if s1 > s0 && inside(0.5 * (s0 + s1)) {
+                match out.last_mut() {
+                    Some(last) if last[1] == s0 => last[1] = s1,
+                    _ => out.push([s0, s1]),
+                }
+            }
+        }
+    }
+
+    /// Whether the ray along `d` is inside the triangle at s = 0 (a still triangle's test).
+    #[must_use]
+    pub fn inside_at_start(&self, d: DVec3) -> bool {
+        let values = self.0.map(|e| d.dot(e.c));
+        let positive = values.iter().all(|&v| v >= 0.0);
+        let negative = values.iter().all(|&v| v <= 0.0);
+        (positive || negative) && values.iter().any(|&v| v != 0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A triangle in the plane z = −2 with the ray d = (0, 0, −1) through (0, 0).
+    fn translating(from_x: f64, to_x: f64) -> MovingTriangle {
+        let start = [
+            DVec3::new(from_x - 0.5, -0.5, -2.0),
+            DVec3::new(from_x + 0.5, -0.5, -2.0),
+            DVec3::new(from_x, 0.5, -2.0),
+        ];
+        MovingTriangle {
+            start,
+            delta: [DVec3::X * (to_x - from_x); 3],
+        }
+    }
+
+    #[test]
+    fn a_translating_triangle_covers_the_sample_for_the_closed_form_time() {
+        // The triangle's base is 1 wide; at the ray's height y = 0 it is 0.5 wide, centred on
+        // its x. Moving from x = −1 to 1 it covers x = 0 while |x| ≤ 0.25: s in [0.375, 0.625].
+        let d = DVec3::new(0.0, 0.0, -1.0);
+        let mut out = Vec::new();
+        translating(-1.0, 1.0)
+            .edge_functions()
+            .covered(d, [0.0, 1.0], &mut out);
+        assert_eq!(out.len(), 1);
+        assert!(
+            (out[0][0] - 0.375).abs() < 1e-12 && (out[0][1] - 0.625).abs() < 1e-12,
+            "{out:?}"
+        );
+        let z = translating(-1.0, 1.0).depth(d, 0.5).unwrap();
+        assert!((z - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_still_triangle_covers_all_or_nothing_and_edge_on_covers_nothing() {
+        let d = DVec3::new(0.0, 0.0, -1.0);
+        let mut out = Vec::new();
+        translating(0.0, 0.0)
+            .edge_functions()
+            .covered(d, [0.0, 1.0], &mut out);
+        assert_eq!(out, vec![[0.0, 1.0]]);
+        out.clear();
+        translating(3.0, 3.0)
+            .edge_functions()
+            .covered(d, [0.0, 1.0], &mut out);
+        assert!(out.is_empty());
+        // Edge-on: the triangle lies in the plane x = 0, which contains the ray.
+        let edge_on = MovingTriangle {
+            start: [
+                DVec3::new(0.0, -0.5, -1.0),
+                DVec3::new(0.0, -0.5, -3.0),
+                DVec3::new(0.0, 0.5, -2.0),
+            ],
+            delta: [DVec3::ZERO; 3],
+        };
+        out.clear();
+        edge_on.edge_functions().covered(d, [0.0, 1.0], &mut out);
+        assert!(out.is_empty(), "{out:?}");
+        assert!(edge_on.depth(d, 0.5).is_none());
+    }
+
+    #[test]
+    fn back_facing_throughout_needs_every_instant_back_facing() {
+        // Counter-clockwise seen from +z: facing the eye at the origin from z = −2.
+        let facing = translating(-1.0, 1.0);
+        assert!(!facing.back_facing_throughout());
+        let mut away = facing;
+        away.start.swap(0, 1);
+        away.delta.swap(0, 1);
+        assert!(away.back_facing_throughout());
+        // Turning over during the segment: corner 2 passes through the plane of the others'
+        // line of sight, so it faces the eye part of the time and is kept.
+        let mut turning = away;
+        turning.delta[2] =
+            DVec3::new(0.0, -1.0, 0.0) - turning.start[2] + DVec3::new(0.0, 0.0, -2.0);
+        assert!(!turning.back_facing_throughout());
+    }
+
+    #[test]
+    fn near_plane_crossings_clip_the_time() {
+        // Corner 0 goes from depth 2 to depth 0: it reaches the near plane 0.5 at s = 0.75.
+        let mut t = translating(0.0, 0.0);
+        t.delta[0] = DVec3::new(0.0, 0.0, 2.0);
+        let [lo, hi] = t.in_front(0.5).unwrap();
+        assert!(lo == 0.0 && (hi - 0.75).abs() < 1e-12);
+        t.delta = [DVec3::new(0.0, 0.0, 5.0); 3];
+        let [lo, hi] = t.in_front(0.5).unwrap();
+        assert!(lo == 0.0 && (hi - 0.3).abs() < 1e-12);
+        t.start = [DVec3::new(0.0, 0.0, 1.0); 3];
+        assert!(t.in_front(0.5).is_none());
+    }
+}

@@ -1,0 +1,210 @@
+//! Triangle meshes drawn as triangles (`static`, `reference` and `analytic`): positions shared by
+//! the triangles, a shading normal per corner and a colour per vertex, all in object space.
+//!
+//! Corner normals are smoothed across edges and split at creases: a corner takes the
+//! area-weighted mean of the face normals around its vertex that lie within [`CREASE_DEGREES`]
+//! of its own face's, so a scanned surface shades smoothly and a cube keeps its flat sides.
+
+use glam::DVec3;
+
+use crate::error::{Error, Result};
+use crate::surfels::{Colouring, Mesh, DEFAULT_GREY};
+
+/// Faces meeting at more than this angle keep their own normals along the shared edge.
+pub const CREASE_DEGREES: f64 = 60.0;
+
+/// A triangle mesh ready to draw.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TriangleMesh {
+    /// Vertex positions.
+    pub positions: Vec<DVec3>,
+    /// Triangles, three indices into `positions` each, none degenerate.
+    pub triangles: Vec<[u32; 3]>,
+    /// Unit shading normal of each triangle's three corners.
+    pub normals: Vec<[DVec3; 3]>,
+    /// Linear RGB of each vertex.
+    pub colours: Vec<[f32; 3]>,
+    /// Whether every edge is shared by exactly two triangles wound consistently: a closed
+    /// surface, whose triangles facing away from the eye are hidden and need not be drawn.
+    pub closed: bool,
+}
+
+impl TriangleMesh {
+    /// The triangles of `mesh` with a positive area, moved by `-offset`, coloured as
+    /// `colouring` says (a mesh file has no colours of its own: [`Colouring::Own`] is light grey).
+    /// An error names `faces` when no triangle is left.
+    pub fn new(mesh: &Mesh, offset: DVec3, colouring: Colouring) -> Result<TriangleMesh> {
+        let positions: Vec<DVec3> = mesh.positions.iter().map(|&p| p - offset).collect();
+        let mut triangles = Vec::with_capacity(mesh.triangles.len());
+        let mut face_normals = Vec::with_capacity(mesh.triangles.len());
+        for &t in &mesh.triangles {
+            let Some([a, b, c]) = mesh.corners(t) else {
+                continue;
+            };
+            // Twice the area along the unit normal; zero or non-finite areas are left out.
+            let cross = (b - a).cross(c - a);
+            if cross.length() > 0.0 && cross.is_finite() {
+                triangles.push(t);
+                face_normals.push(cross);
+            }
+        }
+        if triangles.is_empty() {
+            return Err(Error::invalid(
+                "faces",
+                format!(
+                    "all {} triangles are degenerate (zero area) or index past the vertices: \
+                     there is nothing to draw",
+                    mesh.triangles.len()
+                ),
+            ));
+        }
+        let normals = corner_normals(positions.len(), &triangles, &face_normals);
+        let mut vertex_normals = vec![DVec3::ZERO; positions.len()];
+        for (t, corners) in triangles.iter().zip(&normals) {
+            for (&v, n) in t.iter().zip(corners) {
+                vertex_normals[v as usize] += *n;
+            }
+        }
+        let colours = vertex_normals
+            .iter()
+            .map(|n| match colouring {
+                Colouring::Own => DEFAULT_GREY,
+                Colouring::Rgb(rgb) => rgb,
+                Colouring::Normal => (n.normalize_or_zero() * 0.5 + 0.5).as_vec3().to_array(),
+            })
+            .collect();
+        let closed = is_closed(&triangles);
+        Ok(TriangleMesh {
+            positions,
+            triangles,
+            normals,
+            colours,
+            closed,
+        })
+    }
+}
+
+/// Whether each directed edge appears once and its reverse once: a closed, consistently wound
+/// surface.
+fn is_closed(triangles: &[[u32; 3]]) -> bool {
+    let mut edges: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .collect();
+    edges.sort_unstable();
+    let unique = edges.windows(2).all(|w| w[0] != w[1]);
+    unique
+        && edges
+            .iter()
+            .all(|&(a, b)| edges.binary_search(&(b, a)).is_ok())
+}
+
+/// Each corner's normal: the sum of the (area-weighted) normals of the faces around its vertex
+/// within [`CREASE_DEGREES`] of its own face's, normalized.
+fn corner_normals(
+    vertices: usize,
+    triangles: &[[u32; 3]],
+    face_normals: &[DVec3],
+) -> Vec<[DVec3; 3]> {
+    // Faces around each vertex, as a compressed list.
+    let mut starts = vec![0usize; vertices + 1];
+    for t in triangles {
+        for &v in t {
+            starts[v as usize + 1] += 1;
+        }
+    }
+    for i in 1..starts.len() {
+        starts[i] += starts[i - 1];
+    }
+    let mut fill = starts.clone();
+    let mut faces = vec![0u32; starts[vertices]];
+    for (f, t) in triangles.iter().enumerate() {
+        for &v in t {
+            faces[fill[v as usize]] = f as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    let cos_crease = CREASE_DEGREES.to_radians().cos();
+    let units: Vec<DVec3> = face_normals.iter().map(|n| n.normalize()).collect();
+    triangles
+        .iter()
+        .enumerate()
+        .map(|(f, t)| {
+            t.map(|v| {
+                let around = &faces[starts[v as usize]..starts[v as usize + 1]];
+                let sum: DVec3 = around
+                    .iter()
+                    .filter(|&&g| units[g as usize].dot(units[f]) >= cos_crease)
+                    .map(|&g| face_normals[g as usize])
+                    .sum();
+                sum.try_normalize().unwrap_or(units[f])
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit cube's six faces, two triangles each, wound outwards.
+    pub(crate) fn cube() -> Mesh {
+        let positions = (0..8)
+            .map(|i| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+            .collect();
+        let quads = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let triangles = quads
+            .iter()
+            .flat_map(|q: &[u32; 4]| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        Mesh {
+            positions,
+            triangles,
+        }
+    }
+
+    #[test]
+    fn a_cube_keeps_flat_faces_and_degenerate_triangles_are_dropped() {
+        let mut mesh = cube();
+        mesh.triangles.push([0, 0, 1]);
+        mesh.triangles.push([0, 1, 99]);
+        let drawn = TriangleMesh::new(&mesh, DVec3::splat(0.5), Colouring::Own).unwrap();
+        assert_eq!(drawn.triangles.len(), 12);
+        assert!(drawn.closed);
+        let mut open = cube();
+        open.triangles.pop();
+        assert!(
+            !TriangleMesh::new(&open, DVec3::ZERO, Colouring::Own)
+                .unwrap()
+                .closed
+        );
+        for (t, corners) in drawn.triangles.iter().zip(&drawn.normals) {
+            let [a, b, c] = t.map(|v| drawn.positions[v as usize]);
+            let face = (b - a).cross(c - a).normalize();
+            // Outward: the face normal points away from the centred cube's middle.
+            assert!(face.dot((a + b + c) / 3.0) > 0.0);
+            for n in corners {
+                assert!((n.dot(face) - 1.0).abs() < 1e-12, "{n} against {face}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_mesh_of_only_degenerate_triangles_is_an_error_naming_faces() {
+        let mesh = Mesh {
+            positions: vec![DVec3::ZERO, DVec3::X, DVec3::X * 2.0],
+            triangles: vec![[0, 1, 2]],
+        };
+        let message = TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Own)
+            .unwrap_err()
+            .to_string();
+        assert!(message.starts_with("faces: "), "{message}");
+    }
+}
