@@ -29,6 +29,8 @@ pub const DEPTH_TOLERANCE_SIGMAS: f64 = 3.0;
 #[derive(Clone, Copy, Debug)]
 pub struct Instant {
     to_view: DAffine3,
+    /// Object → world, for shading (spot lights need the position).
+    to_world: DAffine3,
     /// Object → world rotation, for shading normals.
     rotation: DMat3,
 }
@@ -37,8 +39,10 @@ impl Instant {
     /// The transforms for `pose` seen by `camera`.
     #[must_use]
     pub fn new(camera: &Camera, pose: &Pose) -> Self {
+        let to_world = pose.to_affine();
         Instant {
-            to_view: camera.view * pose.to_affine(),
+            to_view: camera.view * to_world,
+            to_world,
             rotation: pose.rotation_matrix(),
         }
     }
@@ -53,6 +57,12 @@ impl Instant {
     #[must_use]
     pub fn view_vector(&self, v: DVec3) -> DVec3 {
         self.to_view.transform_vector3(v)
+    }
+
+    /// An object-space point in world space.
+    #[must_use]
+    pub fn world_point(&self, p: DVec3) -> DVec3 {
+        self.to_world.transform_point3(p)
     }
 
     /// An object-space unit normal turned into world space.
@@ -141,7 +151,11 @@ impl Located {
                 center,
                 covariance: Sym2::outer(ju) + Sym2::outer(jv),
                 weight: surfel.area * ju.perp_dot(jv).abs() / object_area,
-                colour: lighting.shade(surfel.colour, instant.world_normal(surfel.normal)),
+                colour: lighting.shade(
+                    surfel.colour,
+                    instant.world_normal(surfel.normal),
+                    instant.world_point(surfel.position),
+                ),
                 depth,
                 depth_gradient,
                 depth_tolerance,

@@ -14,7 +14,7 @@ use super::ply::read_ply;
 use super::raw_volume::VoxelType;
 use crate::error::{Error, Result};
 use crate::scene::{
-    Camera, Keyframe, Light, Lighting, Motion, Object, Pose, Scene, Shutter, ShutterShape,
+    Camera, Keyframe, Light, Lighting, Motion, Object, Pose, Scene, Shutter, ShutterShape, Spot,
     TriangleMesh,
 };
 use crate::style::Style;
@@ -87,6 +87,9 @@ struct LightingSpec {
     ambient: f64,
     #[serde(default)]
     light: Vec<LightSpec>,
+    #[serde(default)]
+    spot: Vec<SpotSpec>,
+    shadow_map: Option<u32>,
 }
 
 #[derive(Deserialize)]
@@ -95,6 +98,20 @@ struct LightSpec {
     direction: [f64; 3],
     #[serde(default = "one")]
     intensity: f64,
+    #[serde(default)]
+    shadows: bool,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SpotSpec {
+    position: [f64; 3],
+    target: [f64; 3],
+    angle: f64,
+    #[serde(default = "one")]
+    intensity: f64,
+    #[serde(default)]
+    shadows: bool,
 }
 
 #[derive(Deserialize)]
@@ -481,10 +498,34 @@ fn validate(spec: SceneSpec, path: &Path, mut budget: Budget) -> Result<Scene> {
                 .enumerate()
                 .map(|(i, light)| {
                     Light::new(DVec3::from_array(light.direction), light.intensity)
+                        .map(|l| l.with_shadows(light.shadows))
                         .map_err(|e| e.in_file(path, &format!("lighting.light[{i}]")))
                 })
                 .collect::<Result<_>>()?;
-            Lighting::new(l.ambient, lights).map_err(within("lighting"))?
+            let spots = l
+                .spot
+                .iter()
+                .enumerate()
+                .map(|(i, spot)| {
+                    Spot::new(
+                        DVec3::from_array(spot.position),
+                        DVec3::from_array(spot.target),
+                        spot.angle,
+                        spot.intensity,
+                        spot.shadows,
+                    )
+                    .map_err(|e| e.in_file(path, &format!("lighting.spot[{i}]")))
+                })
+                .collect::<Result<_>>()?;
+            let mut lighting = Lighting::new(l.ambient, lights)
+                .map_err(within("lighting"))?
+                .with_spots(spots);
+            if let Some(texels) = l.shadow_map {
+                lighting = lighting
+                    .with_shadow_map(texels)
+                    .map_err(within("lighting"))?;
+            }
+            lighting
         }
     };
     let base = path.parent().unwrap_or(Path::new("."));

@@ -29,11 +29,13 @@ pub struct Light {
     pub direction: DVec3,
     /// Irradiance scale.
     pub intensity: f64,
+    /// Whether triangle objects cast shadows from it onto triangle objects.
+    pub shadows: bool,
 }
 
 impl Light {
     /// A light from `direction` (any length but zero; it is normalized) of `intensity` in
-    /// [0, [`MAX_RADIANCE`]]. Errors name `direction` or `intensity`.
+    /// [0, [`MAX_RADIANCE`]], casting no shadows. Errors name `direction` or `intensity`.
     pub fn new(direction: DVec3, intensity: f64) -> Result<Light> {
         let direction = finite3("direction", direction)?
             .try_normalize()
@@ -41,17 +43,113 @@ impl Light {
         Ok(Light {
             direction,
             intensity: radiance("intensity", intensity)?,
+            shadows: false,
         })
+    }
+
+    /// The same light casting shadows (or not).
+    #[must_use]
+    pub fn with_shadows(mut self, shadows: bool) -> Light {
+        self.shadows = shadows;
+        self
     }
 }
 
+/// A spot light: a point at `position` shining along `direction` within a cone of half-angle
+/// `angle`, its edge softened over the outer [`SPOT_EDGE`] of the angle. Irradiance does not
+/// fall off with distance (an illustration light, like the directional one).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spot {
+    /// Where the light is, in world space.
+    pub position: DVec3,
+    /// Unit vector along the cone's axis, away from the light.
+    pub direction: DVec3,
+    /// Half-angle of the cone, radians, in (0, 80°].
+    pub angle: f64,
+    /// Irradiance scale on the axis.
+    pub intensity: f64,
+    /// Whether triangle objects cast shadows from it onto triangle objects.
+    pub shadows: bool,
+}
+
+/// Share of a spot's half-angle over which its edge fades to dark.
+pub const SPOT_EDGE: f64 = 0.15;
+
+/// Widest spot half-angle, degrees: its shadow map is a perspective view of twice that.
+pub const MAX_SPOT_ANGLE_DEGREES: f64 = 80.0;
+
+impl Spot {
+    /// A spot at `position` aimed at `target` with half-angle `angle_degrees` in
+    /// (0, [`MAX_SPOT_ANGLE_DEGREES`]] and `intensity` in [0, [`MAX_RADIANCE`]]. Errors name the
+    /// field.
+    pub fn new(
+        position: DVec3,
+        target: DVec3,
+        angle_degrees: f64,
+        intensity: f64,
+        shadows: bool,
+    ) -> Result<Spot> {
+        let position = finite3("position", position)?;
+        let direction = (finite3("target", target)? - position)
+            .try_normalize()
+            .ok_or_else(|| Error::invalid("target", "must differ from the spot's position"))?;
+        let angle = finite("angle", angle_degrees)?;
+        if !(angle > 0.0 && angle <= MAX_SPOT_ANGLE_DEGREES) {
+            return Err(Error::invalid(
+                "angle",
+                format!("{angle}: the cone's half-angle is in degrees, above 0 and at most {MAX_SPOT_ANGLE_DEGREES}"),
+            ));
+        }
+        Ok(Spot {
+            position,
+            direction,
+            angle: angle.to_radians(),
+            intensity: radiance("intensity", intensity)?,
+            shadows,
+        })
+    }
+
+    /// Irradiance scale towards world point `p` before the cosine law: the intensity inside the
+    /// cone, fading to 0 over its outer edge (smoothstep in angle), 0 outside.
+    #[must_use]
+    pub fn reach(&self, p: DVec3) -> f64 {
+        let Some(towards) = (p - self.position).try_normalize() else {
+            return 0.0;
+        };
+        let off_axis = towards.dot(self.direction).clamp(-1.0, 1.0).acos();
+        let x = ((self.angle - off_axis) / (SPOT_EDGE * self.angle)).clamp(0.0, 1.0);
+        self.intensity * x * x * (3.0 - 2.0 * x)
+    }
+}
+
+/// Texels per side of a shadow map unless the scene says otherwise.
+pub const DEFAULT_SHADOW_MAP: u32 = 1024;
+
+/// Largest shadow map side, texels.
+pub const MAX_SHADOW_MAP: u32 = 4096;
+
 /// Lambertian lighting; with no lights the scene is drawn unlit (colours as given).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Lighting {
     /// Irradiance added everywhere.
     pub ambient: f64,
     /// Directional lights.
     pub lights: Vec<Light>,
+    /// Spot lights.
+    pub spots: Vec<Spot>,
+    /// Texels per side of each shadow map.
+    pub shadow_map: u32,
+}
+
+impl Default for Lighting {
+    fn default() -> Self {
+        Lighting {
+            ambient: 0.0,
+            lights: Vec::new(),
+            spots: Vec::new(),
+            shadow_map: DEFAULT_SHADOW_MAP,
+        }
+    }
 }
 
 impl Lighting {
@@ -61,34 +159,74 @@ impl Lighting {
         Ok(Lighting {
             ambient: radiance("ambient", ambient)?,
             lights,
+            ..Lighting::default()
         })
+    }
+
+    /// The same lighting with `spots` added.
+    #[must_use]
+    pub fn with_spots(mut self, spots: Vec<Spot>) -> Lighting {
+        self.spots = spots;
+        self
+    }
+
+    /// The same lighting with shadow maps of `texels` per side, 16 to [`MAX_SHADOW_MAP`]; an
+    /// error names `shadow_map`.
+    pub fn with_shadow_map(mut self, texels: u32) -> Result<Lighting> {
+        if !(16..=MAX_SHADOW_MAP).contains(&texels) {
+            return Err(Error::invalid(
+                "shadow_map",
+                format!(
+                    "{texels}: texels per side of a shadow map, between 16 and {MAX_SHADOW_MAP}"
+                ),
+            ));
+        }
+        self.shadow_map = texels;
+        Ok(self)
     }
 
     /// Whether any shading happens at all: a scene without a `[lighting]` table (no lights, no
     /// ambient term) is drawn with its colours as given.
     #[must_use]
     pub fn is_lit(&self) -> bool {
-        !self.lights.is_empty() || self.ambient != 0.0
+        !self.lights.is_empty() || !self.spots.is_empty() || self.ambient != 0.0
     }
 
-    /// The colour of a surface of `albedo` with world-space unit normal `normal`.
+    /// Whether any light casts shadows.
     #[must_use]
-    pub fn shade(&self, albedo: [f32; 3], normal: DVec3) -> [f32; 3] {
+    pub fn any_shadows(&self) -> bool {
+        self.lights.iter().any(|l| l.shadows) || self.spots.iter().any(|s| s.shadows)
+    }
+
+    /// The colour of a surface of `albedo` with world-space unit normal `normal` at world point
+    /// `position`, unshadowed.
+    #[must_use]
+    pub fn shade(&self, albedo: [f32; 3], normal: DVec3, position: DVec3) -> [f32; 3] {
         if !self.is_lit() {
             return albedo;
         }
-        let irradiance = self.ambient + self.direct(normal);
+        let irradiance = self.ambient + self.direct(normal, position);
         albedo.map(|c| c * irradiance as f32)
     }
 
-    /// Irradiance from the lights alone on a surface with world-space unit normal `normal`:
-    /// Σ intensity · max(0, N·L).
+    /// Irradiance from the lights alone on a surface with world-space unit normal `normal` at
+    /// `position`: Σ intensity · max(0, N·L), each spot within its cone.
     #[must_use]
-    pub fn direct(&self, normal: DVec3) -> f64 {
-        self.lights
+    pub fn direct(&self, normal: DVec3, position: DVec3) -> f64 {
+        let directional: f64 = self
+            .lights
             .iter()
             .map(|l| l.intensity * normal.dot(l.direction).max(0.0))
-            .sum()
+            .sum();
+        let spots: f64 = self
+            .spots
+            .iter()
+            .map(|s| {
+                let towards = (s.position - position).normalize_or_zero();
+                s.reach(position) * normal.dot(towards).max(0.0)
+            })
+            .sum();
+        directional + spots
     }
 }
 
@@ -300,10 +438,10 @@ mod tests {
     #[test]
     fn lighting_shades_by_the_cosine_law() {
         let lighting = Lighting::new(0.1, vec![Light::new(DVec3::Z, 0.8).unwrap()]).unwrap();
-        let lit = lighting.shade([1.0, 0.5, 0.0], DVec3::new(0.0, 0.6, 0.8));
+        let lit = lighting.shade([1.0, 0.5, 0.0], DVec3::new(0.0, 0.6, 0.8), DVec3::ZERO);
         assert!((lit[0] - (0.1 + 0.8 * 0.8)).abs() < 1e-6 && (lit[1] - 0.5 * 0.74).abs() < 1e-6);
         assert_eq!(
-            lighting.shade([1.0; 3], -DVec3::Z),
+            lighting.shade([1.0; 3], -DVec3::Z, DVec3::ZERO),
             [0.1; 3].map(|c: f64| c as f32)
         );
     }

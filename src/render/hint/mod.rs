@@ -504,7 +504,8 @@ fn object_trails(
                     .map(|ellipse| {
                         let normals = [&instants[ia], &instants[ib]]
                             .map(|instant| instant.world_normal(surfel.normal));
-                        styled(context, ellipse, [a, b], normals, piece)
+                        let position = instants[ia].world_point(surfel.position);
+                        styled(context, ellipse, [a, b], normals, position, piece)
                     })
                     .and_then(|e| {
                         e.footprint(camera.width, camera.height)
@@ -518,14 +519,15 @@ fn object_trails(
     })
 }
 
-/// A motion ellipse of a piece, whose ends are seen as `a` and `b` with world normals `normals`,
-/// dressed as a trail splat: colour from the style's source, weight scaled by intensity, fade,
+/// A motion ellipse of a piece, whose ends are seen as `a` and `b` with world normals `normals`
+/// (and the surfel at world `position` at its start), dressed as a trail splat: colour from the style's source, weight scaled by intensity, fade,
 /// N·L and N·V (Guan & Mueller §4), the style's texture and blending.
 fn styled(
     context: &TrailContext,
     mut ellipse: ScreenSplat,
     [a, b]: [&SurfelView; 2],
     normals: [glam::DVec3; 2],
+    position: glam::DVec3,
     piece: &Piece,
 ) -> ScreenSplat {
     let (scene, trail, fastest_px) = (context.scene, &context.style.trail, context.fastest_px);
@@ -555,9 +557,10 @@ fn styled(
         ellipse.colour = ramp_colour(stops, u);
     }
     let mut scale = trail.intensity * (trail.fade + (1.0 - trail.fade) * along) / trail.density;
-    if trail.modulate_light && scene.lighting.is_lit() && !scene.lighting.lights.is_empty() {
+    let lighting = &scene.lighting;
+    if trail.modulate_light && (!lighting.lights.is_empty() || !lighting.spots.is_empty()) {
         let normal = (normals[0] + normals[1]).normalize_or_zero();
-        scale *= scene.lighting.direct(normal).min(1.0);
+        scale *= lighting.direct(normal, position).min(1.0);
     }
     if trail.modulate_view {
         scale *= (0.5 * (a.facing + b.facing)).max(0.0);

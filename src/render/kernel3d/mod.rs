@@ -345,9 +345,11 @@ fn kernels_over(
             let density = surfel.area / surfel.axis_u.cross(surfel.axis_v).length();
             let kernel = |[p0, p1]: [DVec3; 2], middle: &Instant, window: [f64; 2]| {
                 let axes = [surfel.axis_u, surfel.axis_v].map(|a| middle.view_vector(a));
-                let colour = scene
-                    .lighting
-                    .shade(surfel.colour, middle.world_normal(surfel.normal));
+                let colour = scene.lighting.shade(
+                    surfel.colour,
+                    middle.world_normal(surfel.normal),
+                    middle.world_point(surfel.position),
+                );
                 Kernel::new(camera, p0, p1, axes, density, colour, window)
                     .ok_or(Cull::Raster(Rejection::Degenerate))
             };

@@ -3,6 +3,10 @@
 //! over that time (linear pieces); the resolve sweeps the exposure and keeps, at every instant,
 //! only the nearest piece.
 
+/// Two pieces of one item join when the joined line misses their meeting depth by at most this
+/// share of it.
+pub const JOIN_TOLERANCE: f64 = 1e-9;
+
 /// One linear piece of a surface's depth over a time interval at one sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Interval {
@@ -129,12 +133,18 @@ pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut V
     }
 }
 
-/// Append `interval` visible over `[t0, t1]`, joined to the last piece when it continues it.
+/// Append `interval` visible over `[t0, t1]`, joined to the last piece when it continues it on
+/// the same line (the same item, meeting end to end, with its depth where the joined line puts it
+/// to within [`JOIN_TOLERANCE`] of the depth): a depth that bends stays in pieces, because shadow
+/// maps compare it.
 fn push_visible(out: &mut Vec<Visible>, first: usize, interval: &Interval, [t0, t1]: [f64; 2]) {
     let depth = [interval.depth_at(t0), interval.depth_at(t1)];
     if out.len() > first {
         if let Some(last) = out.last_mut() {
-            if last.item == interval.item && last.t[1] == t0 {
+            let joined =
+                last.depth[0] + (depth[1] - last.depth[0]) * (t0 - last.t[0]) / (t1 - last.t[0]);
+            let straight = (joined - depth[0]).abs() <= JOIN_TOLERANCE * depth[0].abs();
+            if last.item == interval.item && last.t[1] == t0 && straight {
                 last.t[1] = t1;
                 last.depth[1] = depth[1];
                 return;

@@ -11,17 +11,19 @@
 //! visible piece; a pixel is the mean of its samples (a box filter over an n × n grid).
 
 pub(crate) mod intervals;
+pub(crate) mod shadow;
 pub(crate) mod tct;
 
-use glam::{DMat3, DVec3};
+use glam::{DAffine3, DMat3, DVec3};
 use rayon::prelude::*;
 
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::raster::TILE_PX;
 use crate::raster::{TileGrid, TileLists};
-use crate::scene::{Object, Scene, TriangleMesh};
+use crate::scene::{Camera, Object, Scene, TriangleMesh};
 use intervals::{resolve, Interval, ResolveScratch, Visible};
+use shadow::{Occluder, Occluders, ShadowMap, Source};
 use tct::{EdgeFunctions, MovingTriangle};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
@@ -121,6 +123,8 @@ struct Placed {
     window: [f64; 2],
     /// The segment's start and end time.
     time: [f64; 2],
+    /// The viewing camera's focal length, px.
+    focal_px: f64,
 }
 
 /// One triangle over one sub-segment.
@@ -133,10 +137,17 @@ struct Item {
     bounds: [u32; 4],
 }
 
-/// Triangle objects prepared for one exposure.
+/// Triangle objects prepared for one exposure, seen by one camera (the scene's, or a light's).
 struct Prepared<'a> {
     scene: &'a Scene,
+    camera: Camera,
+    /// Camera space → world, for where shading happens.
+    view_to_world: DAffine3,
     exposure: Exposure,
+    /// Every light, in [`Source::all`] order.
+    sources: Vec<Source<'a>>,
+    /// The shadow map of each light that casts shadows, in the same order.
+    shadows: Vec<ShadowMap>,
     objects: Vec<(&'a Object, &'a TriangleMesh, Vec<Segment>)>,
     items: Vec<Item>,
     /// Triangle × segment pairs left out, wholly behind the near plane.
@@ -159,13 +170,27 @@ pub struct TriangleImage {
 /// [`MAX_TRIANGLE_ITEMS`].
 #[must_use]
 pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
-    Prepared::new(plan, exposure).render()
+    let scene = plan.scene();
+    let shadows = Source::all(&scene.lighting)
+        .iter()
+        .filter(|source| source.shadows())
+        .map(|source| {
+            let camera = source.camera(scene, plan);
+            ShadowMap::new(Prepared::new(plan, camera, exposure, Vec::new()).occluders())
+        })
+        .collect();
+    Prepared::new(plan, scene.camera.clone(), exposure, shadows).render()
 }
 
 impl<'a> Prepared<'a> {
-    fn new(plan: &Plan<'a>, exposure: Exposure) -> Prepared<'a> {
+    fn new(
+        plan: &Plan<'a>,
+        camera: Camera,
+        exposure: Exposure,
+        shadows: Vec<ShadowMap>,
+    ) -> Prepared<'a> {
         let scene = plan.scene();
-        let camera = &scene.camera;
+        let camera_ref = &camera;
         let mut objects = Vec::new();
         for (index, (object, object_plan)) in scene.objects.iter().zip(&plan.objects).enumerate() {
             if !plan.draws_triangles(index) {
@@ -183,7 +208,7 @@ impl<'a> Prepared<'a> {
                 (Exposure::Shutter, ObjectMotion::Moving { segments, .. }) => segments.clone(),
             };
             let corners_at = |t: f64| {
-                let to_view = camera.view * object.motion.pose_at(t).to_affine();
+                let to_view = camera_ref.view * object.motion.pose_at(t).to_affine();
                 mesh.positions
                     .iter()
                     .map(|&p| to_view.transform_point3(p))
@@ -219,9 +244,14 @@ impl<'a> Prepared<'a> {
             .iter()
             .map(|(_, mesh, segments)| mesh.triangles.len() * segments.len())
             .sum();
+        let view_to_world = camera.view.inverse();
         let mut prepared = Prepared {
             scene,
+            camera,
+            view_to_world,
             exposure,
+            sources: Source::all(&scene.lighting),
+            shadows,
             objects,
             items: Vec::new(),
             behind_near: 0,
@@ -252,14 +282,13 @@ impl<'a> Prepared<'a> {
     fn triangle(&self, item: &Item) -> Placed {
         let segment = self.segment(item);
         let triangle = self.corners(item);
-        let window = triangle
-            .in_front(self.scene.camera.near)
-            .unwrap_or([0.0, 0.0]);
+        let window = triangle.in_front(self.camera.near).unwrap_or([0.0, 0.0]);
         Placed {
             edges: triangle.edge_functions(),
             triangle,
             window,
             time: segment.time,
+            focal_px: self.camera.focal_px,
         }
     }
 
@@ -270,7 +299,7 @@ impl<'a> Prepared<'a> {
     /// Also returns how many were left out behind the near plane. `count` is the number of
     /// triangle × segment pairs.
     fn make_items(&self, count: usize) -> (Vec<Item>, usize) {
-        let camera = &self.scene.camera;
+        let camera = &self.camera;
         let (width, height) = (camera.width, camera.height);
         let mut items = Vec::with_capacity(count);
         let mut behind_near = 0;
@@ -323,18 +352,23 @@ impl<'a> Prepared<'a> {
         (items, behind_near)
     }
 
-    fn render(&self) -> TriangleImage {
-        let camera = &self.scene.camera;
-        let (width, height) = (camera.width, camera.height);
-        let grid = TileGrid::new(width, height);
-        let lists = TileLists::new(&grid, self.items.len(), |index, visit| {
+    /// The items binned to the tiles of `grid` by their bounds.
+    fn tile_lists(&self, grid: &TileGrid) -> TileLists {
+        TileLists::new(grid, self.items.len(), |index, visit| {
             let [x0, y0, x1, y1] = self.items[index as usize].bounds;
             for ty in y0 / TILE_PX..=(y1 - 1) / TILE_PX {
                 for tx in x0 / TILE_PX..=(x1 - 1) / TILE_PX {
                     visit(grid.index(tx, ty));
                 }
             }
-        });
+        })
+    }
+
+    fn render(&self) -> TriangleImage {
+        let camera = &self.camera;
+        let (width, height) = (camera.width, camera.height);
+        let grid = TileGrid::new(width, height);
+        let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
         let band = width as usize * TILE_PX as usize;
         let mut image = Framebuffer::filled(width, height, self.scene.background);
@@ -377,8 +411,9 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// Render one tile into `scratch.pixels` (colour and hidden-beyond depth, row by row).
-    fn render_tile(
+    /// Insert every item of a tile into its samples: intervals (`Shutter`) or the nearest
+    /// (`Instant`).
+    fn fill_tile(
         &self,
         list: &[u32],
         [x0, y0, x1, y1]: [u32; 4],
@@ -386,7 +421,7 @@ impl<'a> Prepared<'a> {
         scratch: &mut Scratch,
         stats: &mut TriangleStats,
     ) {
-        let camera = &self.scene.camera;
+        let camera = &self.camera;
         let w = (x1 - x0) as usize;
         let per_pixel = offsets.len();
         let samples = w * (y1 - y0) as usize * per_pixel;
@@ -409,6 +444,21 @@ impl<'a> Prepared<'a> {
                 }
             }
         }
+    }
+
+    /// Render one tile into `scratch.pixels` (colour and hidden-beyond depth, row by row).
+    fn render_tile(
+        &self,
+        list: &[u32],
+        bounds @ [x0, y0, x1, y1]: [u32; 4],
+        offsets: &[[f64; 2]],
+        scratch: &mut Scratch,
+        stats: &mut TriangleStats,
+    ) {
+        self.fill_tile(list, bounds, offsets, scratch, stats);
+        let camera = &self.camera;
+        let w = (x1 - x0) as usize;
+        let per_pixel = offsets.len();
         let background = self.scene.background.map(f64::from);
         let mut pixels = std::mem::take(&mut scratch.pixels);
         pixels.clear();
@@ -443,7 +493,8 @@ impl<'a> Prepared<'a> {
             Exposure::Instant(_) => match scratch.nearest[sample] {
                 Some((depth, index)) => {
                     let item = &self.items[index as usize];
-                    (self.shade(item, &self.corners(item), d, 0.0), depth)
+                    let t = self.segment(item).time[0];
+                    (self.shade(item, &self.corners(item), d, 0.0, t), depth)
                 }
                 None => (background, f64::INFINITY),
             },
@@ -486,58 +537,269 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// Mean colour of a visible piece, weighted by the shutter: three Gauss–Legendre times.
+    /// Mean colour of a visible piece, weighted by the shutter. The piece is cut where the
+    /// surface turns towards or away from a light (eq. 2.5: N·L, quadratic in time, through its
+    /// values at the piece's ends and middle) and where a shadow can start or end (exact for a
+    /// receiver within one texel footprint, [`ShadowMap::breakpoints`]; max(2|pₑ − pₛ|, 5) equal
+    /// cuts for one sweeping texels); visibility is taken at each cut piece's middle and the
+    /// rest integrated at three Gauss–Legendre times.
     fn piece_colour(&self, piece: &Visible, d: DVec3) -> [f64; 3] {
         let item = &self.items[piece.item as usize];
         let triangle = self.corners(item);
         let segment = self.segment(item);
-        if segment.still {
-            return self.shade(item, &triangle, d, 0.0);
-        }
         let [t0, t1] = segment.time;
-        let (centre, half) = (
-            0.5 * (piece.t[0] + piece.t[1]),
-            0.5 * (piece.t[1] - piece.t[0]),
-        );
+        let fraction = |t: f64| if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        if segment.still && self.shadows.is_empty() {
+            return self.shade(item, &triangle, d, 0.0, segment.time[0]);
+        }
+        let span = piece.t;
+        let own = (item.object, item.triangle);
+        let mut cuts = vec![span[0], span[1]];
+        let mut point_sampled = false;
+        if self.scene.lighting.is_lit() && !segment.still {
+            for source in &self.sources {
+                let facing = |t: f64| {
+                    let (normal, p) = self.surface(item, &triangle, d, fraction(t));
+                    normal.dot(source.towards(p))
+                };
+                let mid = 0.5 * (span[0] + span[1]);
+                let [f0, fm, f1] = [facing(span[0]), facing(mid), facing(span[1])];
+                // The quadratic through the three values, in u = (t − t0)/(t1 − t0).
+                let (a, b, c) = (
+                    2.0 * f0 - 4.0 * fm + 2.0 * f1,
+                    -3.0 * f0 + 4.0 * fm - f1,
+                    f0,
+                );
+                let (roots, n) = crate::math::quadratic_roots(a, b, c);
+                for &u in &roots[..n] {
+                    if u > 0.0 && u < 1.0 {
+                        cuts.push(span[0] + u * (span[1] - span[0]));
+                    }
+                }
+            }
+        }
+        let still_surface = segment.still.then(|| self.surface(item, &triangle, d, 0.0));
+        let surface_at =
+            |t: f64| still_surface.unwrap_or_else(|| self.surface(item, &triangle, d, fraction(t)));
+        for map in &self.shadows {
+            let (normal, start) = surface_at(span[0]);
+            let end = surface_at(span[1]).1;
+            let sweep = map.sweep(start, end);
+            if sweep < 1.0 {
+                map.breakpoints([start, end], normal, span, own, &mut cuts);
+            } else {
+                point_sampled = true;
+                let count = (2.0 * sweep)
+                    .max(5.0)
+                    .min(shadow::MAX_RECEIVER_SAMPLES as f64) as usize;
+                cuts.extend(
+                    (1..count).map(|i| span[0] + (span[1] - span[0]) * i as f64 / count as f64),
+                );
+            }
+        }
+        cuts.sort_unstable_by(f64::total_cmp);
+        cuts.dedup();
+        let visibility_at = |t: f64| -> Vec<f64> {
+            let (normal, p) = surface_at(t);
+            self.shadows
+                .iter()
+                .map(|map| map.visibility(p, normal, t, own))
+                .collect()
+        };
+        if segment.still {
+            // Nothing but the shadows changes: shade once, weigh each cut piece's light by its
+            // shutter mass.
+            let (normal, p) = self.surface(item, &triangle, d, 0.0);
+            let albedo = self.albedo(item, &triangle, d, 0.0);
+            let (mut sum, mut mass) = (0.0, 0.0);
+            for pair in cuts.windows(2) {
+                let m = self.scene.shutter.moments(pair[0], pair[1]).mass;
+                sum += m * self.irradiance(normal, p, &visibility_at(0.5 * (pair[0] + pair[1])));
+                mass += m;
+            }
+            let irradiance = if mass > 0.0 {
+                sum / mass
+            } else {
+                self.irradiance(normal, p, &visibility_at(span[0]))
+            };
+            return albedo.map(|c| c * irradiance);
+        }
+        // Cut pieces with exact ends (turning, a static receiver's shadow edges) are integrated
+        // at three Gauss–Legendre times each; a receiver point-sampled across texels by their
+        // middles, which is the point sampling itself.
+        let nodes: &[(f64, f64)] = if point_sampled {
+            &[(0.0, 2.0)]
+        } else {
+            &GAUSS_LEGENDRE_3
+        };
         let mut sum = [0.0; 3];
         let mut weight = 0.0;
-        for (node, w) in GAUSS_LEGENDRE_3 {
-            let t = centre + half * node;
-            let w = w * self.scene.shutter.weight(t).max(1e-300);
-            let s = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-            let colour = self.shade(item, &triangle, d, s);
-            for c in 0..3 {
-                sum[c] += w * colour[c];
+        for pair in cuts.windows(2) {
+            let [a, b] = [pair[0], pair[1]];
+            if !(b > a) {
+                continue;
             }
-            weight += w;
+            let (centre, half) = (0.5 * (a + b), 0.5 * (b - a));
+            let visibility = visibility_at(centre);
+            for &(node, w) in nodes {
+                let t = centre + half * node;
+                let w = w * half * self.scene.shutter.weight(t).max(1e-300);
+                let colour = self.shade_lit(item, &triangle, d, fraction(t), &visibility);
+                for c in 0..3 {
+                    sum[c] += w * colour[c];
+                }
+                weight += w;
+            }
         }
-        sum.map(|c| c / weight)
+        if weight > 0.0 {
+            sum.map(|c| c / weight)
+        } else {
+            self.shade(item, &triangle, d, fraction(span[0]), span[0])
+        }
     }
 
-    /// The colour the ray `d` sees on `item` at segment fraction `s`: corner colours and normals
-    /// interpolated perspective-correctly, the normal turned to face the eye (both sides of a
-    /// triangle are drawn), Lambert shading.
-    fn shade(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
+    /// The shading normal (world, facing the eye: both sides of a triangle are drawn) and the
+    /// world point the ray `d` sees on `item` at segment fraction `s`.
+    fn surface(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> (DVec3, DVec3) {
         let (_, mesh, _) = &self.objects[item.object as usize];
         let weights = triangle.barycentric(d, s);
-        let corners = mesh.triangles[item.triangle as usize];
-        let albedo = [0, 1, 2].map(|c| {
-            (0..3)
-                .map(|k| weights[k] * f64::from(mesh.colours[corners[k] as usize][c]))
-                .sum::<f64>() as f32
-        });
-        if !self.scene.lighting.is_lit() {
-            return albedo.map(f64::from);
-        }
         let normals = mesh.normals[item.triangle as usize];
         let local: DVec3 = (0..3).map(|k| normals[k] * weights[k]).sum();
         let [r0, r1] = self.segment(item).rotation;
         let mut world = (r0 * local).lerp(r1 * local, s).normalize_or_zero();
-        let view = self.scene.camera.view.transform_vector3(world);
-        if view.dot(d) > 0.0 {
+        if self.camera.view.transform_vector3(world).dot(d) > 0.0 {
             world = -world;
         }
-        self.scene.lighting.shade(albedo, world).map(f64::from)
+        let depth = triangle.depth(d, s).unwrap_or(0.0);
+        (world, self.view_to_world.transform_point3(d * depth))
+    }
+
+    /// The colour the ray `d` sees on `item` at segment fraction `s` (time `t`), in the shadows
+    /// of that instant.
+    fn shade(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64, t: f64) -> [f64; 3] {
+        let own = (item.object, item.triangle);
+        let visibility: Vec<f64> = if self.shadows.is_empty() {
+            Vec::new()
+        } else {
+            let (normal, p) = self.surface(item, triangle, d, s);
+            self.shadows
+                .iter()
+                .map(|map| map.visibility(p, normal, t, own))
+                .collect()
+        };
+        self.shade_lit(item, triangle, d, s, &visibility)
+    }
+
+    /// The colour the ray `d` sees on `item` at segment fraction `s`, each shadowed light
+    /// reaching it by its share in `visibility` (in [`Source::all`] order of the shadowed ones).
+    fn shade_lit(
+        &self,
+        item: &Item,
+        triangle: &MovingTriangle,
+        d: DVec3,
+        s: f64,
+        visibility: &[f64],
+    ) -> [f64; 3] {
+        let albedo = self.albedo(item, triangle, d, s);
+        if !self.scene.lighting.is_lit() {
+            return albedo;
+        }
+        let (normal, p) = self.surface(item, triangle, d, s);
+        let irradiance = self.irradiance(normal, p, visibility);
+        albedo.map(|c| c * irradiance)
+    }
+
+    /// The corner colours interpolated perspective-correctly where the ray `d` meets `item` at
+    /// segment fraction `s`.
+    fn albedo(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
+        let (_, mesh, _) = &self.objects[item.object as usize];
+        let weights = triangle.barycentric(d, s);
+        let corners = mesh.triangles[item.triangle as usize];
+        [0, 1, 2].map(|c| {
+            (0..3)
+                .map(|k| weights[k] * f64::from(mesh.colours[corners[k] as usize][c]))
+                .sum::<f64>()
+        })
+    }
+
+    /// Lambertian irradiance at world point `p` with unit `normal`: ambient plus each light's
+    /// reach × max(0, N·L), the shadowed ones scaled by their share in `visibility`. 1 unlit.
+    fn irradiance(&self, normal: DVec3, p: DVec3, visibility: &[f64]) -> f64 {
+        let lighting = &self.scene.lighting;
+        if !lighting.is_lit() {
+            return 1.0;
+        }
+        let mut shadowed = visibility.iter();
+        let direct: f64 = self
+            .sources
+            .iter()
+            .map(|source| {
+                let share = if source.shadows() {
+                    shadowed.next().copied().unwrap_or(1.0)
+                } else {
+                    1.0
+                };
+                share * source.reach(p) * normal.dot(source.towards(p)).max(0.0)
+            })
+            .sum();
+        lighting.ambient + direct
+    }
+
+    /// The occluders of every texel, seen from this (a light's) camera with one sample per texel.
+    fn occluders(&self) -> Occluders {
+        let camera = &self.camera;
+        let grid = TileGrid::new(camera.width, camera.height);
+        let lists = self.tile_lists(&grid);
+        let offsets = camera.sample_offsets();
+        let tiles = (0..grid.count())
+            .into_par_iter()
+            .map_init(
+                || (Scratch::default(), TriangleStats::default()),
+                |(scratch, stats), tile| {
+                    let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
+                    self.fill_tile(lists.list(tile), bounds, &offsets, scratch, stats);
+                    let texels = ((x1 - x0) * (y1 - y0)) as usize;
+                    let mut starts = Vec::with_capacity(texels + 1);
+                    let mut found = Vec::new();
+                    starts.push(0u32);
+                    for texel in 0..texels {
+                        match self.exposure {
+                            Exposure::Instant(t) => {
+                                if let Some((depth, index)) = scratch.nearest[texel] {
+                                    found.push(Visible {
+                                        t: [t, t],
+                                        item: index,
+                                        depth: [depth, depth],
+                                    });
+                                }
+                            }
+                            Exposure::Shutter => {
+                                let Scratch {
+                                    lists, resolving, ..
+                                } = scratch;
+                                resolve(&lists[texel], resolving, &mut found);
+                            }
+                        }
+                        starts.push(found.len() as u32);
+                    }
+                    let occluders = found
+                        .into_iter()
+                        .map(|piece| {
+                            let item = &self.items[piece.item as usize];
+                            Occluder {
+                                piece,
+                                id: (item.object, item.triangle),
+                            }
+                        })
+                        .collect();
+                    (starts, occluders)
+                },
+            )
+            .collect();
+        Occluders {
+            camera: self.camera.clone(),
+            tiles,
+        }
     }
 }
 
@@ -599,6 +861,7 @@ impl Scratch {
             edges,
             window,
             time: [t0, t1],
+            ..
         } = placed;
         let (window, t0, t1) = (*window, *t0, *t1);
         if !(window[1] > window[0]) {
@@ -612,7 +875,11 @@ impl Scratch {
             let Some(z0) = triangle.depth(d, span[0]) else {
                 continue;
             };
-            if triangle.depth_knots(d, span, &mut self.knots).is_none() {
+            let tolerance = tct::DEPTH_TOLERANCE_PX / placed.focal_px;
+            if triangle
+                .depth_knots(d, span, tolerance, &mut self.knots)
+                .is_none()
+            {
                 continue;
             }
             let mut previous = [span[0], z0];

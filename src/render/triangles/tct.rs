@@ -13,9 +13,11 @@ use glam::DVec3;
 /// Most pieces a covered interval's depth is cut into where a line does not follow it.
 pub const MAX_DEPTH_PIECES: usize = 16;
 
-/// A linear depth piece may stray from the exact depth at its middle by this share of the depth
-/// before it is halved (Palmér §5, "Adaptive depth sampling").
-pub const DEPTH_TOLERANCE: f64 = 1e-3;
+/// A linear depth piece may stray from the exact depth at its middle by this many pixel widths
+/// at that depth (depth / focal length in px) before it is halved (Palmér §5, "Adaptive depth
+/// sampling"): a quarter pixel keeps depth errors below a shadow map's bias and, in the image,
+/// at 6·10⁻⁴ of the depth for a 400 px focal length.
+pub const DEPTH_TOLERANCE_PX: f64 = 0.25;
 
 /// A triangle whose corners move linearly in camera space over one sub-segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,33 +134,34 @@ impl MovingTriangle {
 
     /// The depth over [s0, s1] as linear pieces (s, depth at s) joined end to end: halved where
     /// the line between a piece's ends misses the exact depth at its middle by more than
-    /// [`DEPTH_TOLERANCE`] of it, up to [`MAX_DEPTH_PIECES`]. Appends the knots after the first
+    /// `tolerance` × the depth, up to [`MAX_DEPTH_PIECES`]. Appends the knots after the first
     /// to `knots` (the caller holds the first). `None` when the depth is undefined somewhere.
     pub fn depth_knots(
         &self,
         d: DVec3,
         [s0, s1]: [f64; 2],
+        tolerance: f64,
         knots: &mut Vec<[f64; 2]>,
     ) -> Option<()> {
         let z0 = self.depth(d, s0)?;
         let z1 = self.depth(d, s1)?;
-        self.refine(d, [s0, z0], [s1, z1], MAX_DEPTH_PIECES, knots)
+        self.refine(d, [[s0, z0], [s1, z1]], tolerance, MAX_DEPTH_PIECES, knots)
     }
 
     fn refine(
         &self,
         d: DVec3,
-        [s0, z0]: [f64; 2],
-        [s1, z1]: [f64; 2],
+        [[s0, z0], [s1, z1]]: [[f64; 2]; 2],
+        tolerance: f64,
         budget: usize,
         knots: &mut Vec<[f64; 2]>,
     ) -> Option<()> {
         if budget >= 2 {
             let sm = 0.5 * (s0 + s1);
             let zm = self.depth(d, sm)?;
-            if (zm - 0.5 * (z0 + z1)).abs() > DEPTH_TOLERANCE * zm {
-                self.refine(d, [s0, z0], [sm, zm], budget / 2, knots)?;
-                return self.refine(d, [sm, zm], [s1, z1], budget / 2, knots);
+            if (zm - 0.5 * (z0 + z1)).abs() > tolerance * zm {
+                self.refine(d, [[s0, z0], [sm, zm]], tolerance, budget / 2, knots)?;
+                return self.refine(d, [[sm, zm], [s1, z1]], tolerance, budget / 2, knots);
             }
         }
         knots.push([s1, z1]);

@@ -1,0 +1,335 @@
+//! Motion-blurred shadows from time-dependent shadow maps (Palmér §2.3): each light that casts
+//! shadows sees the triangle objects through a camera of its own, and every texel keeps, over the
+//! exposure, the resolved interval list of its nearest occluders (the same time-continuous
+//! triangles and resolve as the image), or the nearest occluder at an instant.
+//!
+//! A receiver point is lit at time t when the texel's occluder at t is its own triangle (Palmér's
+//! polygon IDs) or lies no nearer than the receiver's depth less a bias of
+//! [`BIAS_TEXELS`] texels' width. Lookups are bilinear over four texels (percentage-closer
+//! filtering). A static receiver's lit times are exact: within a texel each occluder piece's depth
+//! is linear in time, so the times where it passes the receiver's depth are roots of a line;
+//! [`ShadowMap::breakpoints`] gives them, and visibility is constant between them. A receiver
+//! that sweeps texels is point-sampled at max(2|pₑ − pₛ|, 5) times (Palmér §4.1).
+
+use glam::{DVec2, DVec3};
+
+use super::intervals::Visible;
+use crate::plan::Plan;
+use crate::scene::{Camera, Light, Lighting, Scene, Spot};
+
+/// Depth bias against self-shadowing, in texel widths at the receiver's depth, times
+/// 1 + tan of the angle between the receiver's normal and the light (capped at
+/// [`MAX_BIAS_SLOPE`]): a surface lit at a grazing angle changes depth fast across a texel, and
+/// its neighbouring triangles would shadow it.
+pub const BIAS_TEXELS: f64 = 2.0;
+
+/// Largest slope factor of the bias.
+pub const MAX_BIAS_SLOPE: f64 = 20.0;
+
+/// The directional light's shadow camera stands this many scene radii from the scene's centre,
+/// so that its perspective is within 1/this of an orthographic view.
+const DIRECTIONAL_DISTANCE: f64 = 50.0;
+
+/// Most point samples of a receiver sweeping the shadow map, per visible piece.
+pub const MAX_RECEIVER_SAMPLES: usize = 256;
+
+/// A light, as shading and shadows need it.
+#[derive(Clone, Copy, Debug)]
+pub enum Source<'a> {
+    /// A directional light.
+    Directional(&'a Light),
+    /// A spot light.
+    Spot(&'a Spot),
+}
+
+impl<'a> Source<'a> {
+    /// Every light of `lighting`: the directional ones, then the spots.
+    #[must_use]
+    pub fn all(lighting: &'a Lighting) -> Vec<Source<'a>> {
+        lighting
+            .lights
+            .iter()
+            .map(Source::Directional)
+            .chain(lighting.spots.iter().map(Source::Spot))
+            .collect()
+    }
+
+    /// Whether it casts shadows.
+    #[must_use]
+    pub fn shadows(&self) -> bool {
+        match self {
+            Source::Directional(l) => l.shadows,
+            Source::Spot(s) => s.shadows,
+        }
+    }
+
+    /// Unit vector from world point `p` towards the light.
+    #[must_use]
+    pub fn towards(&self, p: DVec3) -> DVec3 {
+        match self {
+            Source::Directional(l) => l.direction,
+            Source::Spot(s) => (s.position - p).normalize_or_zero(),
+        }
+    }
+
+    /// Irradiance scale at `p` before the cosine law.
+    #[must_use]
+    pub fn reach(&self, p: DVec3) -> f64 {
+        match self {
+            Source::Directional(l) => l.intensity,
+            Source::Spot(s) => s.reach(p),
+        }
+    }
+
+    /// The camera of its shadow map: the spot's own view of its cone, or for a directional light
+    /// a narrow perspective view from far along its direction, framing the triangle objects'
+    /// bounds over the exposure.
+    #[must_use]
+    pub fn camera(&self, scene: &Scene, plan: &Plan) -> Camera {
+        let size = scene.lighting.shadow_map;
+        let up = |direction: DVec3| {
+            if direction.cross(DVec3::Y).length() > 1e-3 {
+                DVec3::Y
+            } else {
+                DVec3::X
+            }
+        };
+        let (centre, radius) = triangle_bounds(scene, plan);
+        let camera = match self {
+            Source::Spot(s) => {
+                let fov = 2.0 * s.angle.to_degrees();
+                Camera::new(
+                    s.position,
+                    s.position + s.direction,
+                    up(s.direction),
+                    fov,
+                    size,
+                    size,
+                )
+            }
+            Source::Directional(l) => {
+                let distance = DIRECTIONAL_DISTANCE * radius;
+                let fov = 2.0 * (1.05 / DIRECTIONAL_DISTANCE).atan().to_degrees();
+                Camera::new(
+                    centre + l.direction * distance,
+                    centre,
+                    up(l.direction),
+                    fov,
+                    size,
+                    size,
+                )
+                .and_then(|c| c.with_near(distance - 1.5 * radius))
+            }
+        };
+        // Both are well formed: a spot's target differs from its position and its angle is in
+        // range; a directional camera looks at a centre it is far from.
+        camera
+            .and_then(|c| c.with_spatial_samples(1))
+            .unwrap_or_else(|_| scene.camera.clone())
+    }
+}
+
+/// Centre and radius of a sphere around every triangle object drawn as triangles, at every
+/// sub-segment end and keyframe of the exposure.
+fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for (index, object) in scene.objects.iter().enumerate() {
+        let Some(mesh) = object.mesh().filter(|_| plan.draws_triangles(index)) else {
+            continue;
+        };
+        let mut times = vec![
+            scene.shutter.open,
+            scene.shutter.middle(),
+            scene.shutter.close,
+        ];
+        times.extend(
+            object
+                .motion
+                .breaks_within(scene.shutter.open, scene.shutter.close),
+        );
+        if let crate::plan::ObjectMotion::Moving { segments, .. } = &plan.objects[index].motion {
+            times.extend(segments.iter().map(|s| s[1]));
+        }
+        for t in times {
+            let pose = object.motion.pose_at(t).to_affine();
+            for &p in &mesh.positions {
+                let w = pose.transform_point3(p);
+                lo = lo.min(w);
+                hi = hi.max(w);
+            }
+        }
+    }
+    if !(lo.x <= hi.x) {
+        return (DVec3::ZERO, 1.0);
+    }
+    (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-9))
+}
+
+/// One occluder piece of a texel: when, how deep, and which triangle (object, triangle).
+#[derive(Clone, Copy, Debug)]
+pub struct Occluder {
+    /// The visible piece from the light.
+    pub piece: Visible,
+    /// The triangle it belongs to.
+    pub id: (u32, u32),
+}
+
+/// The occluders of every texel: per tile of the light's view, the texels' lists one after the
+/// other (`starts` has one more entry than the tile has texels).
+pub struct Occluders {
+    /// The light's camera.
+    pub camera: Camera,
+    /// Per tile: where each texel's list starts, and the lists.
+    pub tiles: Vec<(Vec<u32>, Vec<Occluder>)>,
+}
+
+/// A light's shadow map, ready for lookups.
+pub struct ShadowMap {
+    occluders: Occluders,
+    tiles_x: u32,
+}
+
+impl ShadowMap {
+    /// The map of `occluders`.
+    #[must_use]
+    pub fn new(occluders: Occluders) -> ShadowMap {
+        let tiles_x = occluders.camera.width.div_ceil(crate::raster::TILE_PX);
+        ShadowMap { occluders, tiles_x }
+    }
+
+    /// Where world point `p` falls: continuous texel coordinates (texel centres at integers)
+    /// and its depth from the light; `None` behind the light.
+    #[must_use]
+    pub fn locate(&self, p: DVec3) -> Option<(DVec2, f64)> {
+        let camera = &self.occluders.camera;
+        let (screen, depth) = camera.project(camera.view.transform_point3(p))?;
+        Some((screen - DVec2::splat(0.5), depth))
+    }
+
+    /// The occluder list of texel (x, y); empty outside the map.
+    fn texel(&self, x: i64, y: i64) -> &[Occluder] {
+        let camera = &self.occluders.camera;
+        if x < 0 || y < 0 || x >= i64::from(camera.width) || y >= i64::from(camera.height) {
+            return &[];
+        }
+        let (x, y) = (x as u32, y as u32);
+        let tile_px = crate::raster::TILE_PX;
+        let (tx, ty) = (x / tile_px, y / tile_px);
+        let (x0, y0) = (tx * tile_px, ty * tile_px);
+        let w = (x0 + tile_px).min(camera.width) - x0;
+        let (starts, list) = &self.occluders.tiles[(ty * self.tiles_x + tx) as usize];
+        let local = ((y - y0) * w + (x - x0)) as usize;
+        &list[starts[local] as usize..starts[local + 1] as usize]
+    }
+
+    /// The depth bias at light depth `depth` for a receiver at `p` with unit `normal`.
+    fn bias(&self, depth: f64, p: DVec3, normal: DVec3) -> f64 {
+        let cos = normal
+            .dot((self.occluders.camera.eye - p).normalize_or_zero())
+            .abs()
+            .max(1e-9);
+        let slope = ((1.0 - cos * cos).max(0.0).sqrt() / cos).min(MAX_BIAS_SLOPE);
+        BIAS_TEXELS * (1.0 + slope) * depth / self.occluders.camera.focal_px
+    }
+
+    /// The four texels of a bilinear lookup at texel coordinates `at`, with their weights.
+    fn footprint(at: DVec2) -> [((i64, i64), f64); 4] {
+        let base = at.floor();
+        let f = at - base;
+        let (x, y) = (base.x as i64, base.y as i64);
+        [
+            ((x, y), (1.0 - f.x) * (1.0 - f.y)),
+            ((x + 1, y), f.x * (1.0 - f.y)),
+            ((x, y + 1), (1.0 - f.x) * f.y),
+            ((x + 1, y + 1), f.x * f.y),
+        ]
+    }
+
+    /// The share of light reaching world point `p` (unit `normal`) at time `t` (bilinear over
+    /// four texels), for a receiver on triangle `own`.
+    #[must_use]
+    pub fn visibility(&self, p: DVec3, normal: DVec3, t: f64, own: (u32, u32)) -> f64 {
+        let Some((at, depth)) = self.locate(p) else {
+            return 1.0;
+        };
+        let limit = depth - self.bias(depth, p, normal);
+        Self::footprint(at)
+            .iter()
+            .filter(|(_, w)| *w > 0.0)
+            .map(|&((x, y), w)| {
+                let occluded = self.texel(x, y).iter().any(|o| {
+                    o.id != own
+                        && o.piece.t[0] <= t
+                        && t <= o.piece.t[1]
+                        && depth_at(&o.piece, t) < limit
+                });
+                if occluded {
+                    0.0
+                } else {
+                    w
+                }
+            })
+            .sum()
+    }
+
+    /// Texel distance between where `p0` and `p1` fall (∞ when one is behind the light).
+    #[must_use]
+    pub fn sweep(&self, p0: DVec3, p1: DVec3) -> f64 {
+        match (self.locate(p0), self.locate(p1)) {
+            (Some((a, _)), Some((b, _))) => a.distance(b),
+            _ => f64::INFINITY,
+        }
+    }
+
+    /// For a receiver on triangle `own` (unit `normal`) moving from `p0` at t0 to `p1` at t1
+    /// within one texel footprint, every time in (t0, t1) at which its visibility can change
+    /// (appended to `out`): the ends of other triangles' occluder pieces in its four texels and
+    /// the times each piece's depth passes the receiver's, both linear in time.
+    pub fn breakpoints(
+        &self,
+        [p0, p1]: [DVec3; 2],
+        normal: DVec3,
+        [t0, t1]: [f64; 2],
+        own: (u32, u32),
+        out: &mut Vec<f64>,
+    ) {
+        let (Some((a, d0)), Some((_, d1))) = (self.locate(p0), self.locate(p1)) else {
+            return;
+        };
+        let limit = |t: f64| {
+            let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0);
+            depth - self.bias(depth, p0, normal)
+        };
+        let inside = |t: f64| t > t0 && t < t1;
+        for ((x, y), _) in Self::footprint(a) {
+            for o in self.texel(x, y).iter().filter(|o| o.id != own) {
+                let [s0, s1] = o.piece.t;
+                for end in [s0, s1] {
+                    if inside(end) {
+                        out.push(end);
+                    }
+                }
+                // Where the occluder's depth line meets the receiver's limit line.
+                let (a0, a1) = (s0.max(t0), s1.min(t1));
+                if !(a1 > a0) {
+                    continue;
+                }
+                let g0 = depth_at(&o.piece, a0) - limit(a0);
+                let g1 = depth_at(&o.piece, a1) - limit(a1);
+                if g0 * g1 < 0.0 {
+                    out.push(a0 + (a1 - a0) * g0 / (g0 - g1));
+                }
+            }
+        }
+    }
+}
+
+/// The depth of a piece at time t (linear between its ends).
+fn depth_at(piece: &Visible, t: f64) -> f64 {
+    let span = piece.t[1] - piece.t[0];
+    if span > 0.0 {
+        piece.depth[0] + (piece.depth[1] - piece.depth[0]) * (t - piece.t[0]) / span
+    } else {
+        piece.depth[0]
+    }
+}
