@@ -13,7 +13,7 @@ use crate::framebuffer::Framebuffer;
 use crate::io::image::write_png;
 use crate::metrics::{compare, ImageError};
 use crate::plan::{ObjectMotion, Plan};
-use crate::render::{render, Method, DEFAULT_TOLERANCE_PX};
+use crate::render::{render, Method, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX};
 use crate::scene::Scene;
 use crate::style::Style;
 use crate::surfels::Budget;
@@ -130,6 +130,9 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
             (Method::STATIC, "t=mid".to_string()),
             (Method::BLUR, format!("τ={DEFAULT_TOLERANCE_PX}px")),
         ];
+        if scene.objects.iter().any(|o| o.mesh().is_some()) {
+            jobs.push((Method::ANALYTIC, format!("τ={ANALYTIC_TOLERANCE_PX}px")));
+        }
         jobs.extend(styles.iter().map(|style| {
             (
                 Method::Hint {
@@ -275,7 +278,7 @@ fn index_html(rows: &[SceneShots], styles: &[Arc<Style>], samples: usize) -> Str
         for shot in first_hint.into_iter().chain(
             row.shots
                 .iter()
-                .filter(|s| s.method == "blur" || s.method == "reference"),
+                .filter(|s| matches!(s.method.as_str(), "blur" | "analytic" | "reference")),
         ) {
             html.push_str(&figure(shot, static_seconds, "big"));
         }

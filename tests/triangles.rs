@@ -386,3 +386,37 @@ fn extreme_triangles_stay_finite_and_their_lists_bounded() {
         }
     }
 }
+
+#[test]
+fn a_sample_behind_hundreds_of_layers_keeps_what_is_in_front() {
+    // 300 still squares stacked behind a red one sliding past: more intervals than a list holds,
+    // so it is compressed to its visible pieces; the centre pixel is red for the quarter of the
+    // exposure the slider covers it and the nearest still layer (blue) otherwise.
+    let mut s = scene(33, 1).with_object(object(
+        "slider",
+        &square(1.0),
+        [1.0, 0.0, 0.0],
+        &[(0.0, at(-2.0, 0.0, 1.0)), (1.0, at(2.0, 0.0, 1.0))],
+    ));
+    for k in 0..300 {
+        let colour = if k == 0 {
+            [0.0, 0.0, 1.0]
+        } else {
+            [0.0, 1.0, 0.0]
+        };
+        s = s.with_object(object(
+            "layer",
+            &square(2.0),
+            colour,
+            &[(0.0, at(0.0, 0.0, -0.01 * f64::from(k)))],
+        ));
+    }
+    let out = render(&s, &Method::ANALYTIC);
+    assert!(out.stats.triangles.compressed > 0);
+    assert_eq!(out.stats.triangles.dropped, 0);
+    let p = pixel(&out.image, 16, 16);
+    assert!(
+        (p[0] - 0.25).abs() < 1e-4 && p[1].abs() < 1e-4 && (p[2] - 0.75).abs() < 1e-4,
+        "{p:?}"
+    );
+}

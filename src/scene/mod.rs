@@ -110,14 +110,15 @@ impl Spot {
     }
 
     /// Irradiance scale towards world point `p` before the cosine law: the intensity inside the
-    /// cone, fading to 0 over its outer edge (smoothstep in angle), 0 outside.
+    /// cone, fading to 0 over its outer edge (smoothstep in the cosine of the angle off the axis,
+    /// which needs no arc cosine per shaded point), 0 outside.
     #[must_use]
     pub fn reach(&self, p: DVec3) -> f64 {
         let Some(towards) = (p - self.position).try_normalize() else {
             return 0.0;
         };
-        let off_axis = towards.dot(self.direction).clamp(-1.0, 1.0).acos();
-        let x = ((self.angle - off_axis) / (SPOT_EDGE * self.angle)).clamp(0.0, 1.0);
+        let (outer, inner) = (self.angle.cos(), ((1.0 - SPOT_EDGE) * self.angle).cos());
+        let x = ((towards.dot(self.direction) - outer) / (inner - outer)).clamp(0.0, 1.0);
         self.intensity * x * x * (3.0 - 2.0 * x)
     }
 }

@@ -187,6 +187,11 @@ pub struct Occluders {
 pub struct ShadowMap {
     occluders: Occluders,
     tiles_x: u32,
+    /// The nearest occluder depth of each texel over all time (+∞ where none), and its coarser
+    /// levels, each the minimum of 2 × 2 cells of the one before: a receiver whose depth limit
+    /// lies nearer than every occluder under its path is lit throughout, which one look at a
+    /// coarse level tells.
+    nearest: Vec<(u32, Vec<f32>)>,
 }
 
 impl ShadowMap {
@@ -194,7 +199,60 @@ impl ShadowMap {
     #[must_use]
     pub fn new(occluders: Occluders) -> ShadowMap {
         let tiles_x = occluders.camera.width.div_ceil(crate::raster::TILE_PX);
-        ShadowMap { occluders, tiles_x }
+        let mut map = ShadowMap {
+            occluders,
+            tiles_x,
+            nearest: Vec::new(),
+        };
+        let side = map.occluders.camera.width;
+        let mut level: Vec<f32> = (0..side * side)
+            .map(|i| {
+                let (x, y) = (i64::from(i % side), i64::from(i / side));
+                map.texel(x, y)
+                    .iter()
+                    .map(|o| o.piece.depth[0].min(o.piece.depth[1]) as f32)
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .collect();
+        let mut size = side;
+        loop {
+            let next_size = size.div_ceil(2);
+            let next: Vec<f32> = (0..next_size * next_size)
+                .map(|i| {
+                    let (x, y) = (i % next_size, i / next_size);
+                    let at = |dx: u32, dy: u32| {
+                        let (u, v) = ((2 * x + dx).min(size - 1), (2 * y + dy).min(size - 1));
+                        level[(v * size + u) as usize]
+                    };
+                    at(0, 0).min(at(1, 0)).min(at(0, 1)).min(at(1, 1))
+                })
+                .collect();
+            map.nearest.push((size, level));
+            if size == 1 {
+                break;
+            }
+            (size, level) = (next_size, next);
+        }
+        map
+    }
+
+    /// Whether a receiver moving from `p0` to `p1` is lit throughout: every occluder under its
+    /// path (and the texels its lookups reach) lies beyond its depth limit at both ends.
+    #[must_use]
+    pub fn surely_lit(&self, p0: DVec3, p1: DVec3, normal: DVec3) -> bool {
+        let (Some((a, d0)), Some((b, d1))) = (self.locate(p0), self.locate(p1)) else {
+            return false;
+        };
+        let limit = (d0 - self.bias(d0, p0, normal)).max(d1 - self.bias(d1, p1, normal));
+        let lo = a.min(b).floor() - DVec2::ONE;
+        let hi = a.max(b).ceil() + DVec2::ONE;
+        let span = (hi - lo).max_element().max(1.0);
+        let level = (span.log2().ceil() as usize).min(self.nearest.len() - 1);
+        let (size, cells) = &self.nearest[level];
+        let scale = f64::from(1u32 << level);
+        let cell = |v: f64| (v / scale).floor().clamp(0.0, f64::from(*size - 1)) as u32;
+        let (x0, x1, y0, y1) = (cell(lo.x), cell(hi.x), cell(lo.y), cell(hi.y));
+        (y0..=y1).all(|y| (x0..=x1).all(|x| f64::from(cells[(y * size + x) as usize]) >= limit))
     }
 
     /// Where world point `p` falls: continuous texel coordinates (texel centres at integers)
@@ -282,9 +340,12 @@ impl ShadowMap {
     }
 
     /// For a receiver on triangle `own` (unit `normal`) moving from `p0` at t0 to `p1` at t1
-    /// within one texel footprint, every time in (t0, t1) at which its visibility can change
-    /// (appended to `out`): the ends of other triangles' occluder pieces in its four texels and
-    /// the times each piece's depth passes the receiver's, both linear in time.
+    /// within one texel footprint, every time in (t0, t1) at which its visibility changes
+    /// (appended to `out`): in each of its four texels, the ends of the runs of time during which
+    /// some other triangle's occluder lies nearer than the receiver's depth limit. Within an
+    /// occluder piece both depths are linear in time, so the part of it that occludes is one
+    /// interval, found exactly; touching parts merge into runs, so a long train of occluder
+    /// pieces (a surface turning over the texel) costs two cuts, not one per piece.
     pub fn breakpoints(
         &self,
         [p0, p1]: [DVec3; 2],
@@ -297,28 +358,40 @@ impl ShadowMap {
             return;
         };
         let limit = |t: f64| {
-            let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0);
+            let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
             depth - self.bias(depth, p0, normal)
         };
-        let inside = |t: f64| t > t0 && t < t1;
         for ((x, y), _) in Self::footprint(a) {
+            let mut run: Option<[f64; 2]> = None;
             for o in self.texel(x, y).iter().filter(|o| o.id != own) {
-                let [s0, s1] = o.piece.t;
-                for end in [s0, s1] {
-                    if inside(end) {
-                        out.push(end);
-                    }
-                }
-                // Where the occluder's depth line meets the receiver's limit line.
-                let (a0, a1) = (s0.max(t0), s1.min(t1));
-                if !(a1 > a0) {
+                let (a0, a1) = (o.piece.t[0].max(t0), o.piece.t[1].min(t1));
+                if a1 < a0 {
                     continue;
                 }
+                // The part of [a0, a1] where the occluder is nearer than the limit.
                 let g0 = depth_at(&o.piece, a0) - limit(a0);
                 let g1 = depth_at(&o.piece, a1) - limit(a1);
-                if g0 * g1 < 0.0 {
-                    out.push(a0 + (a1 - a0) * g0 / (g0 - g1));
-                }
+                let cross = || a0 + (a1 - a0) * g0 / (g0 - g1);
+                let part = match (g0 < 0.0, g1 < 0.0) {
+                    (true, true) => Some([a0, a1]),
+                    (true, false) => Some([a0, cross()]),
+                    (false, true) => Some([cross(), a1]),
+                    (false, false) => None,
+                };
+                let Some([s0, s1]) = part else {
+                    continue;
+                };
+                run = match run {
+                    Some([r0, r1]) if s0 <= r1 => Some([r0, r1.max(s1)]),
+                    Some(done) => {
+                        out.extend(done.into_iter().filter(|&t| t > t0 && t < t1));
+                        Some([s0, s1])
+                    }
+                    None => Some([s0, s1]),
+                };
+            }
+            if let Some(done) = run {
+                out.extend(done.into_iter().filter(|&t| t > t0 && t < t1));
             }
         }
     }
