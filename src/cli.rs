@@ -463,7 +463,7 @@ fn run_study(args: StudyArgs) -> Result<()> {
     let mut report = study::table(&points);
     report
         .push_str("\nEqual error (the smallest reference sample count at least as accurate):\n\n");
-    for method in ["blur", "kernel3d"] {
+    for method in ["blur", "kernel3d", "analytic"] {
         report.push_str(&study::equal_error(&points, method));
     }
     std::fs::write(args.output.join("study.md"), &report)

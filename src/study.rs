@@ -27,6 +27,10 @@ use std::time::Instant;
 /// Blur tolerances studied, px (the plan's chord-deviation tolerance).
 pub const BLUR_TOLERANCES_PX: [f64; 6] = [8.0, 4.0, 2.0, 1.0, 0.5, 0.25];
 
+/// Sub-segment tolerances `analytic` is studied at, px, on scenes with triangle objects (at the
+/// scene's spatial samples per pixel, which the converged reference shares).
+pub const ANALYTIC_TOLERANCES_PX: [f64; 4] = [1.0, 0.3, 0.1, 0.03];
+
 /// Sub-frame counts and visibility modes of `kernel3d` studied.
 pub const KERNEL_SETTINGS: [(usize, Visibility); 7] = [
     (1, Visibility::Exact),
@@ -264,6 +268,14 @@ pub fn run(
             },
             lod: Lod::Off,
         });
+    }
+    // Triangles drawn analytically, across the sub-segment tolerance (its only error in time).
+    if scene.objects.iter().any(|o| o.mesh().is_some()) {
+        setups.extend(
+            ANALYTIC_TOLERANCES_PX
+                .iter()
+                .map(|&tolerance_px| Setting::auto(Method::Analytic { tolerance_px })),
+        );
     }
     let mut n = 1;
     while n <= options.max_samples {

@@ -2,6 +2,9 @@
 //! the z-buffer of `static` and `reference`, against closed forms, against the converged
 //! reference, and on the hard cases of the edge quadratics.
 
+mod common;
+
+use common::rmse;
 use glam::{DQuat, DVec3};
 use streak::scene::{Camera, Keyframe, Light, Lighting, Motion, Object, Pose, TriangleMesh};
 use streak::surfels::{from_mesh, Colouring, Mesh};
@@ -60,16 +63,6 @@ fn render(scene: &Scene, method: &Method) -> Render {
 
 fn pixel(image: &Framebuffer, x: u32, y: u32) -> [f32; 3] {
     image.pixels[(y * image.width + x) as usize]
-}
-
-fn rmse(a: &Framebuffer, b: &Framebuffer) -> f64 {
-    let sum: f64 = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(p, q)| (0..3).map(move |c| f64::from(p[c] - q[c]).powi(2)))
-        .sum();
-    (sum / (3 * a.pixels.len()) as f64).sqrt()
 }
 
 fn all_finite(image: &Framebuffer) -> bool {

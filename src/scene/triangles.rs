@@ -146,28 +146,10 @@ fn corner_normals(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::surfels::mesh::tests::cuboid;
 
-    /// A unit cube's six faces, two triangles each, wound outwards.
-    pub(crate) fn cube() -> Mesh {
-        let positions = (0..8)
-            .map(|i| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let triangles = quads
-            .iter()
-            .flat_map(|q: &[u32; 4]| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        Mesh {
-            positions,
-            triangles,
-        }
+    fn cube() -> Mesh {
+        cuboid(DVec3::ONE)
     }
 
     #[test]
@@ -175,7 +157,7 @@ mod tests {
         let mut mesh = cube();
         mesh.triangles.push([0, 0, 1]);
         mesh.triangles.push([0, 1, 99]);
-        let drawn = TriangleMesh::new(&mesh, DVec3::splat(0.5), Colouring::Own).unwrap();
+        let drawn = TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Own).unwrap();
         assert_eq!(drawn.triangles.len(), 12);
         assert!(drawn.closed);
         let mut open = cube();

@@ -383,7 +383,7 @@ pub(crate) mod tests {
     }
 
     /// An axis-aligned box centred on the origin, two outward-wound triangles per side.
-    fn cuboid(size: DVec3) -> Mesh {
+    pub(crate) fn cuboid(size: DVec3) -> Mesh {
         let corner = |k: u32| {
             DVec3::new(
                 if k & 1 == 0 { -0.5 } else { 0.5 },

@@ -19,7 +19,9 @@ pub struct Interval {
 }
 
 impl Interval {
-    fn depth_at(&self, t: f64) -> f64 {
+    /// The depth at time t (on the piece's line).
+    #[must_use]
+    pub fn depth_at(&self, t: f64) -> f64 {
         let span = self.t[1] - self.t[0];
         if span > 0.0 {
             self.depth[0] + (self.depth[1] - self.depth[0]) * (t - self.t[0]) / span
@@ -38,17 +40,6 @@ impl Interval {
     }
 }
 
-/// A visible piece: `item` is nearest over [t0, t1].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Visible {
-    /// Start and end time.
-    pub t: [f64; 2],
-    /// The nearest item.
-    pub item: u32,
-    /// Its depth at the start and at the end.
-    pub depth: [f64; 2],
-}
-
 /// Working memory of [`resolve`], reused from sample to sample.
 #[derive(Default)]
 pub struct ResolveScratch {
@@ -57,7 +48,7 @@ pub struct ResolveScratch {
     active: Vec<u32>,
 }
 
-/// The visible pieces of `intervals`, in time order, appended to `out`; adjacent pieces of the
+/// The visible pieces of `intervals` (each an interval over which its item is nearest), in time order, appended to `out`; adjacent pieces of the
 /// same item are joined (Gribel's compression of one surface's pieces).
 ///
 /// The interval ends cut the exposure into spans over which the set of active pieces is fixed
@@ -65,7 +56,7 @@ pub struct ResolveScratch {
 /// their lower envelope is found by starting from the nearest at the span's start and stepping to
 /// the earliest line that crosses below the current one, so a span with k active pieces costs
 /// O(k²) and yields at most k visible pieces.
-pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut Vec<Visible>) {
+pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut Vec<Interval>) {
     let ResolveScratch {
         events,
         by_start,
@@ -137,7 +128,7 @@ pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut V
 /// the same line (the same item, meeting end to end, with its depth where the joined line puts it
 /// to within [`JOIN_TOLERANCE`] of the depth): a depth that bends stays in pieces, because shadow
 /// maps compare it.
-fn push_visible(out: &mut Vec<Visible>, first: usize, interval: &Interval, [t0, t1]: [f64; 2]) {
+fn push_visible(out: &mut Vec<Interval>, first: usize, interval: &Interval, [t0, t1]: [f64; 2]) {
     let depth = [interval.depth_at(t0), interval.depth_at(t1)];
     if out.len() > first {
         if let Some(last) = out.last_mut() {
@@ -151,10 +142,10 @@ fn push_visible(out: &mut Vec<Visible>, first: usize, interval: &Interval, [t0, 
             }
         }
     }
-    out.push(Visible {
+    out.push(Interval {
         t: [t0, t1],
-        item: interval.item,
         depth,
+        item: interval.item,
     });
 }
 
@@ -162,7 +153,7 @@ fn push_visible(out: &mut Vec<Visible>, first: usize, interval: &Interval, [t0, 
 mod tests {
     use super::*;
 
-    fn resolved(intervals: &[Interval]) -> Vec<Visible> {
+    fn resolved(intervals: &[Interval]) -> Vec<Interval> {
         let mut out = Vec::new();
         resolve(intervals, &mut ResolveScratch::default(), &mut out);
         out

@@ -22,7 +22,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::raster::TILE_PX;
 use crate::raster::{TileGrid, TileLists};
 use crate::scene::{Camera, Object, Scene, TriangleMesh};
-use intervals::{resolve, Interval, ResolveScratch, Visible};
+use intervals::{resolve, Interval, ResolveScratch};
 use shadow::{Occluder, Occluders, ShadowMap, Source};
 use tct::{EdgeFunctions, MovingTriangle};
 
@@ -549,7 +549,7 @@ impl<'a> Prepared<'a> {
     /// receiver within one texel footprint, [`ShadowMap::breakpoints`]; max(2|pₑ − pₛ|, 5) equal
     /// cuts for one sweeping texels); visibility is taken at each cut piece's middle and the
     /// rest integrated at three Gauss–Legendre times.
-    fn piece_colour(&self, piece: &Visible, d: DVec3) -> [f64; 3] {
+    fn piece_colour(&self, piece: &Interval, d: DVec3) -> [f64; 3] {
         let item = &self.items[piece.item as usize];
         let triangle = self.corners(item);
         let segment = self.segment(item);
@@ -815,10 +815,10 @@ impl<'a> Prepared<'a> {
                         match self.exposure {
                             Exposure::Instant(t) => {
                                 if let Some((depth, index)) = scratch.nearest[texel] {
-                                    found.push(Visible {
+                                    found.push(Interval {
                                         t: [t, t],
-                                        item: index,
                                         depth: [depth, depth],
+                                        item: index,
                                     });
                                 }
                             }
@@ -860,7 +860,7 @@ struct Scratch {
     /// `Shutter`: the interval list per sample.
     lists: Vec<Vec<Interval>>,
     resolving: ResolveScratch,
-    visible: Vec<Visible>,
+    visible: Vec<Interval>,
     covered: Vec<[f64; 2]>,
     knots: Vec<[f64; 2]>,
     /// The finished pixels: colour and hidden-beyond depth.
@@ -953,11 +953,7 @@ impl Scratch {
             resolve(&self.lists[sample], &mut self.resolving, &mut self.visible);
             let list = &mut self.lists[sample];
             list.clear();
-            list.extend(self.visible.iter().map(|v| Interval {
-                t: v.t,
-                depth: v.depth,
-                item: v.item,
-            }));
+            list.extend_from_slice(&self.visible);
         }
         let list = &mut self.lists[sample];
         if list.len() >= MAX_INTERVALS_PER_SAMPLE {

@@ -13,7 +13,7 @@
 
 use glam::{DVec2, DVec3};
 
-use super::intervals::Visible;
+use super::intervals::Interval;
 use crate::plan::Plan;
 use crate::scene::{Camera, Light, Lighting, Scene, Spot};
 
@@ -169,7 +169,7 @@ fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
 #[derive(Clone, Copy, Debug)]
 pub struct Occluder {
     /// The visible piece from the light.
-    pub piece: Visible,
+    pub piece: Interval,
     /// The triangle it belongs to.
     pub id: (u32, u32),
 }
@@ -319,7 +319,7 @@ impl ShadowMap {
                     o.id != own
                         && o.piece.t[0] <= t
                         && t <= o.piece.t[1]
-                        && depth_at(&o.piece, t) < limit
+                        && o.piece.depth_at(t) < limit
                 });
                 if occluded {
                     0.0
@@ -369,8 +369,8 @@ impl ShadowMap {
                     continue;
                 }
                 // The part of [a0, a1] where the occluder is nearer than the limit.
-                let g0 = depth_at(&o.piece, a0) - limit(a0);
-                let g1 = depth_at(&o.piece, a1) - limit(a1);
+                let g0 = o.piece.depth_at(a0) - limit(a0);
+                let g1 = o.piece.depth_at(a1) - limit(a1);
                 let cross = || a0 + (a1 - a0) * g0 / (g0 - g1);
                 let part = match (g0 < 0.0, g1 < 0.0) {
                     (true, true) => Some([a0, a1]),
@@ -394,15 +394,5 @@ impl ShadowMap {
                 out.extend(done.into_iter().filter(|&t| t > t0 && t < t1));
             }
         }
-    }
-}
-
-/// The depth of a piece at time t (linear between its ends).
-fn depth_at(piece: &Visible, t: f64) -> f64 {
-    let span = piece.t[1] - piece.t[0];
-    if span > 0.0 {
-        piece.depth[0] + (piece.depth[1] - piece.depth[0]) * (t - piece.t[0]) / span
-    } else {
-        piece.depth[0]
     }
 }
