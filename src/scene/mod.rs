@@ -66,6 +66,8 @@ pub struct Spot {
     pub direction: DVec3,
     /// Half-angle of the cone, radians, in (0, 80°].
     pub angle: f64,
+    /// Cosines of the half-angle and of the edge's inner end: where the light fades.
+    edge_cosines: [f64; 2],
     /// Irradiance scale on the axis.
     pub intensity: f64,
     /// Whether triangle objects cast shadows from it onto triangle objects.
@@ -104,6 +106,10 @@ impl Spot {
             position,
             direction,
             angle: angle.to_radians(),
+            edge_cosines: [
+                angle.to_radians().cos(),
+                ((1.0 - SPOT_EDGE) * angle.to_radians()).cos(),
+            ],
             intensity: radiance("intensity", intensity)?,
             shadows,
         })
@@ -117,7 +123,7 @@ impl Spot {
         let Some(towards) = (p - self.position).try_normalize() else {
             return 0.0;
         };
-        let (outer, inner) = (self.angle.cos(), ((1.0 - SPOT_EDGE) * self.angle).cos());
+        let [outer, inner] = self.edge_cosines;
         let x = ((towards.dot(self.direction) - outer) / (inner - outer)).clamp(0.0, 1.0);
         self.intensity * x * x * (3.0 - 2.0 * x)
     }

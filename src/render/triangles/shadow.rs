@@ -315,12 +315,15 @@ impl ShadowMap {
             .iter()
             .filter(|(_, w)| *w > 0.0)
             .map(|&((x, y), w)| {
-                let occluded = self.texel(x, y).iter().any(|o| {
-                    o.id != own
-                        && o.piece.t[0] <= t
-                        && t <= o.piece.t[1]
-                        && o.piece.depth_at(t) < limit
-                });
+                // A texel's pieces are in time order and do not overlap (one resolve's output),
+                // and instants' pieces are single times: the ones covering t start at the first
+                // that has not ended before it.
+                let list = self.texel(x, y);
+                let first = list.partition_point(|o| o.piece.t[1] < t);
+                let occluded = list[first..]
+                    .iter()
+                    .take_while(|o| o.piece.t[0] <= t)
+                    .any(|o| o.id != own && o.piece.depth_at(t) < limit);
                 if occluded {
                     0.0
                 } else {
