@@ -1,6 +1,7 @@
-//! streak renders moving geometry (surfels: oriented Gaussian disks) two ways from one
-//! pipeline: physically based motion blur, and stylized motion hints (the object sharp at a
-//! flash over a trail drawn in a [`style`]).
+//! streak renders moving geometry (surfels: oriented Gaussian disks; and triangle meshes,
+//! drawn with analytic visibility in time and motion-blurred shadows by `Method::Analytic`)
+//! two ways from one pipeline: physically based motion blur, and stylized motion hints (the
+//! object sharp at a flash over a trail drawn in a [`style`]).
 //!
 //! Build a [`Scene`] in code from a [`Camera`], objects made by a [`surfels`] source and a
 //! keyframed [`Motion`], pick a [`Method`], and [`render()`] it. This is
