@@ -10,7 +10,8 @@ use streak::io::image as output;
 use streak::lod::Lod;
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
 use streak::render::{
-    Subframes, Visibility, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX, MAX_SAMPLES, MAX_SUBFRAMES,
+    Receivers, Subframes, Visibility, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
+    MAX_SUBFRAMES,
 };
 use streak::scene::camera::check_image_size;
 use streak::study::{self, StudyOptions};
@@ -118,6 +119,10 @@ struct RenderArgs {
     /// `kernel3d` with the paper's GPU approximation of visibility instead of the A-buffer.
     #[arg(long)]
     approximate: bool,
+    /// `analytic`: shadow receivers that sweep shadow-map texels by intersecting their path with
+    /// the texel grid, instead of point-sampling it.
+    #[arg(long)]
+    traced: bool,
     /// Level of detail: `auto` merges surfels where the image cannot tell them apart (along the
     /// motion of what is drawn blurred, and within a pixel); `off` draws every surfel.
     #[arg(long, value_enum, default_value = "auto")]
@@ -291,6 +296,7 @@ fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
         &[MethodName::Kernel3d],
     )?;
     only(args.approximate, "--approximate", &[MethodName::Kernel3d])?;
+    only(args.traced, "--traced", &[MethodName::Analytic])?;
     only(
         args.tolerance.is_some(),
         "--tolerance",
@@ -316,6 +322,11 @@ fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
         MethodName::Blur => Method::Blur { tolerance_px },
         MethodName::Analytic => Method::Analytic {
             tolerance_px: args.tolerance.unwrap_or(ANALYTIC_TOLERANCE_PX),
+            receivers: if args.traced {
+                Receivers::Traced
+            } else {
+                Receivers::Sampled
+            },
         },
         MethodName::Hint => Method::Hint {
             style: Arc::new(match &args.style {

@@ -14,7 +14,8 @@ use crate::metrics::{compare, ImageError};
 use crate::plan::Plan;
 use crate::plot::StudyPoint;
 use crate::render::{
-    render, Method, Render, Subframes, Visibility, DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
+    render, Method, Receivers, Render, Subframes, Visibility, ANALYTIC_TOLERANCE_PX,
+    DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
 };
 use crate::scene::Scene;
 use crate::style::Style;
@@ -96,7 +97,13 @@ impl Setting {
             Method::Reference { samples } => format!("N={samples}"),
             Method::Hint { style, .. } => format!("style={}", style.name()),
             Method::Kernel3d { .. } => self.kernel_label("F=", ""),
-            Method::Analytic { tolerance_px } => format!("τ={tolerance_px}px"),
+            Method::Analytic {
+                tolerance_px,
+                receivers,
+            } => match receivers {
+                Receivers::Sampled => format!("τ={tolerance_px}px"),
+                Receivers::Traced => format!("τ={tolerance_px}px traced"),
+            },
         };
         self.with_lod(knob, " lod=off")
     }
@@ -139,7 +146,13 @@ impl Setting {
             Method::Reference { samples } => format!("reference-n{samples}"),
             Method::Hint { style, .. } => format!("hint-{}", style.name()),
             Method::Kernel3d { .. } => format!("kernel3d-{}", self.kernel_label("f", "-approx")),
-            Method::Analytic { tolerance_px } => format!("analytic-tol{tolerance_px}"),
+            Method::Analytic {
+                tolerance_px,
+                receivers,
+            } => match receivers {
+                Receivers::Sampled => format!("analytic-tol{tolerance_px}"),
+                Receivers::Traced => format!("analytic-tol{tolerance_px}-traced"),
+            },
         };
         self.with_lod(stem, "-lod-off")
     }
@@ -271,11 +284,19 @@ pub fn run(
     }
     // Triangles drawn analytically, across the sub-segment tolerance (its only error in time).
     if scene.objects.iter().any(|o| o.mesh().is_some()) {
-        setups.extend(
-            ANALYTIC_TOLERANCES_PX
-                .iter()
-                .map(|&tolerance_px| Setting::auto(Method::Analytic { tolerance_px })),
-        );
+        setups.extend(ANALYTIC_TOLERANCES_PX.iter().map(|&tolerance_px| {
+            Setting::auto(Method::Analytic {
+                tolerance_px,
+                receivers: Receivers::Sampled,
+            })
+        }));
+        // Receivers sweeping shadow-map texels traced instead of sampled, at the default tolerance.
+        if scene.lighting.any_shadows() {
+            setups.push(Setting::auto(Method::Analytic {
+                tolerance_px: ANALYTIC_TOLERANCE_PX,
+                receivers: Receivers::Traced,
+            }));
+        }
     }
     let mut n = 1;
     while n <= options.max_samples {

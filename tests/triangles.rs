@@ -6,6 +6,7 @@ mod common;
 
 use common::rmse;
 use glam::{DQuat, DVec3};
+use streak::render::Receivers;
 use streak::scene::{Camera, Keyframe, Light, Lighting, Motion, Object, Pose, TriangleMesh};
 use streak::surfels::{from_mesh, Colouring, Mesh};
 use streak::{Framebuffer, Method, Plan, Render, Scene};
@@ -128,7 +129,14 @@ fn a_square_turning_about_the_view_axis_matches_the_converged_reference() {
     let reference = render(&s, &Method::Reference { samples: 2048 }).image;
     let error = |tolerance_px| {
         rmse(
-            &render(&s, &Method::Analytic { tolerance_px }).image,
+            &render(
+                &s,
+                &Method::Analytic {
+                    tolerance_px,
+                    receivers: Receivers::Sampled,
+                },
+            )
+            .image,
             &reference,
         )
     };
@@ -412,4 +420,38 @@ fn a_sample_behind_hundreds_of_layers_keeps_what_is_in_front() {
         (p[0] - 0.25).abs() < 1e-4 && p[1].abs() < 1e-4 && (p[2] - 0.75).abs() < 1e-4,
         "{p:?}"
     );
+}
+
+#[test]
+fn a_floor_moving_in_depth_under_a_still_occluder_is_shadowed_for_the_closed_form_time() {
+    // The centre pixel sees the point (0, 0, z) of a floor rising from z = −1 to 1.9 towards
+    // the camera. Light from (1, 0, 1): the unit square at height 2, centred at x = 1, shadows
+    // the point while 2 − z lies in [0.5, 1.5], z in [0.5, 1.5]: 1/2.9 of the exposure, during
+    // which the point sweeps shadow-map texels (a dynamic receiver).
+    let s = lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
+        .with_object(object(
+            "floor",
+            &square(8.0),
+            [1.0; 3],
+            &[(0.0, at(0.0, 0.0, -1.0)), (1.0, at(0.0, 0.0, 1.9))],
+        ))
+        .with_object(object(
+            "occluder",
+            &square(1.0),
+            [0.0; 3],
+            &[(0.0, at(1.0, 0.0, 2.0))],
+        ));
+    let lit = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
+    let expected = lit - (1.0 / 2.9) * (lit - 0.2);
+    for receivers in [Receivers::Sampled, Receivers::Traced] {
+        let method = Method::Analytic {
+            tolerance_px: 0.1,
+            receivers,
+        };
+        let p = pixel(&render(&s, &method).image, 16, 16);
+        assert!(
+            (f64::from(p[0]) - expected).abs() < 3e-3,
+            "{receivers:?}: {p:?} against {expected}"
+        );
+    }
 }

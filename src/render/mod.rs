@@ -96,7 +96,20 @@ pub enum Method {
     Analytic {
         /// Largest distance of a curved screen path from its linear sub-segments, px.
         tolerance_px: f64,
+        /// How receivers that sweep shadow-map texels are shadowed.
+        receivers: Receivers,
     },
+}
+
+/// How `analytic` shadows a receiver that sweeps shadow-map texels during a visible piece.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Receivers {
+    /// Point-sampled max(2|pₑ − pₛ|, 5) times (Palmér §4.1).
+    #[default]
+    Sampled,
+    /// Its path intersected with the texel grid and each texel's occluders (Palmér's future
+    /// work): exact but for the bilinear weights.
+    Traced,
 }
 
 /// How `kernel3d` cuts the exposure into sub-frames.
@@ -131,6 +144,7 @@ impl Method {
     /// `analytic` at its default tolerance.
     pub const ANALYTIC: Method = Method::Analytic {
         tolerance_px: ANALYTIC_TOLERANCE_PX,
+        receivers: Receivers::Sampled,
     };
 
     /// `hint` in `style` at the default tolerance.
@@ -161,7 +175,7 @@ impl Method {
     pub fn tolerance_px(&self) -> f64 {
         match *self {
             Method::Blur { tolerance_px }
-            | Method::Analytic { tolerance_px }
+            | Method::Analytic { tolerance_px, .. }
             | Method::Hint { tolerance_px, .. }
             | Method::Kernel3d {
                 subframes: Subframes::Planned { tolerance_px },

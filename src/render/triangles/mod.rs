@@ -21,6 +21,7 @@ use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::raster::TILE_PX;
 use crate::raster::{TileGrid, TileLists};
+use crate::render::{Method, Receivers};
 use crate::scene::{Camera, Object, Scene, TriangleMesh};
 use intervals::{resolve, Interval, ResolveScratch};
 use shadow::{Occluder, Occluders, ShadowMap, Source};
@@ -154,6 +155,8 @@ struct Prepared<'a> {
     sources: Vec<Source<'a>>,
     /// The shadow map of each light that casts shadows, in the same order.
     shadows: Vec<ShadowMap>,
+    /// How receivers sweeping shadow-map texels are shadowed.
+    receivers: Receivers,
     objects: Vec<(&'a Object, &'a TriangleMesh, Vec<Segment>)>,
     items: Vec<Item>,
     /// Triangle × segment pairs left out, wholly behind the near plane.
@@ -258,6 +261,10 @@ impl<'a> Prepared<'a> {
             exposure,
             sources: Source::all(&scene.lighting),
             shadows,
+            receivers: match plan.method() {
+                Method::Analytic { receivers, .. } => *receivers,
+                _ => Receivers::Sampled,
+            },
             objects,
             items: Vec::new(),
             behind_near: 0,
@@ -618,7 +625,9 @@ impl<'a> Prepared<'a> {
             let sweep = map.sweep(start, end);
             if sweep < 1.0 {
                 map.breakpoints([start, end], normal, span, own, &mut cuts);
-            } else {
+            } else if !(self.receivers == Receivers::Traced
+                && map.traced_breakpoints([start, end], normal, span, own, &mut cuts))
+            {
                 point_sampled = true;
                 let count = (2.0 * sweep)
                     .max(5.0)

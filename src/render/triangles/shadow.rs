@@ -342,6 +342,77 @@ impl ShadowMap {
         }
     }
 
+    /// For a receiver on triangle `own` (unit `normal`) moving uniformly from `p0` at t0 to `p1`
+    /// at t1 across texels, every time in (t0, t1) at which its visibility can change, appended to
+    /// `out`. This goes past Palmér's point sampling, following his future work: the path is
+    /// intersected with the texel grid. A point moving linearly in world space crosses the line
+    /// "texel coordinate = k" at a time that solves a linear equation, since the projection is a
+    /// ratio of linear functions. Between two crossings the four texels of its bilinear lookup are
+    /// fixed, and [`ShadowMap::breakpoints`] finds their occluded runs exactly. Visibility taken
+    /// between the cuts is then exact but for the bilinear weights, which move with the point.
+    /// Returns false, adding nothing, when the path crosses more than
+    /// [`MAX_RECEIVER_SAMPLES`] grid lines or leaves the light's view.
+    pub fn traced_breakpoints(
+        &self,
+        [p0, p1]: [DVec3; 2],
+        normal: DVec3,
+        [t0, t1]: [f64; 2],
+        own: (u32, u32),
+        out: &mut Vec<f64>,
+    ) -> bool {
+        let (Some((a, _)), Some((b, _))) = (self.locate(p0), self.locate(p1)) else {
+            return false;
+        };
+        let lines = (a.x.floor() - b.x.floor()).abs() + (a.y.floor() - b.y.floor()).abs();
+        if !(lines <= MAX_RECEIVER_SAMPLES as f64) {
+            return false;
+        }
+        let camera = &self.occluders.camera;
+        let (q0, q1) = (
+            camera.view.transform_point3(p0),
+            camera.view.transform_point3(p1),
+        );
+        let dq = q1 - q0;
+        let f = camera.focal_px;
+        // Texel coordinate X = W/2 − ½ + f·x/(−z) and Y = H/2 − ½ − f·y/(−z) reach k where
+        // (W/2 − ½ − k)(−z) + f·x = 0, and (H/2 − ½ − k)(−z) − f·y = 0: linear in u ∈ [0, 1].
+        let mut cuts = vec![t0, t1];
+        let mut cross = |from: f64, to: f64, offset: f64, along: fn(DVec3) -> f64, sign: f64| {
+            let (lo, hi) = (from.min(to), from.max(to));
+            let mut k = lo.floor() + 1.0;
+            while k <= hi {
+                let c = offset - k;
+                let (base, slope) = (
+                    c * -q0.z + sign * f * along(q0),
+                    c * -dq.z + sign * f * along(dq),
+                );
+                if slope != 0.0 {
+                    let u = -base / slope;
+                    if u > 0.0 && u < 1.0 {
+                        cuts.push(t0 + u * (t1 - t0));
+                    }
+                }
+                k += 1.0;
+            }
+        };
+        let (half_w, half_h) = (
+            0.5 * f64::from(camera.width) - 0.5,
+            0.5 * f64::from(camera.height) - 0.5,
+        );
+        cross(a.x, b.x, half_w, |q| q.x, 1.0);
+        cross(a.y, b.y, half_h, |q| q.y, -1.0);
+        cuts.sort_unstable_by(f64::total_cmp);
+        let point = |t: f64| p0.lerp(p1, (t - t0) / (t1 - t0));
+        for pair in cuts.windows(2) {
+            let [s0, s1] = [pair[0], pair[1]];
+            if s1 > s0 {
+                self.breakpoints([point(s0), point(s1)], normal, [s0, s1], own, out);
+            }
+        }
+        out.extend(cuts.iter().copied().filter(|&t| t > t0 && t < t1));
+        true
+    }
+
     /// For a receiver on triangle `own` (unit `normal`) moving from `p0` at t0 to `p1` at t1
     /// within one texel footprint, every time in (t0, t1) at which its visibility changes
     /// (appended to `out`): in each of its four texels, the ends of the runs of time during which
@@ -357,14 +428,19 @@ impl ShadowMap {
         own: (u32, u32),
         out: &mut Vec<f64>,
     ) {
-        let (Some((a, d0)), Some((_, d1))) = (self.locate(p0), self.locate(p1)) else {
+        let (Some((_, d0)), Some((_, d1)), Some((middle, _))) = (
+            self.locate(p0),
+            self.locate(p1),
+            self.locate(p0.lerp(p1, 0.5)),
+        ) else {
             return;
         };
         let limit = |t: f64| {
             let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
             depth - self.bias(depth, p0, normal)
         };
-        for ((x, y), _) in Self::footprint(a) {
+        // The footprint of the middle: a traced receiver's piece starts on a grid line.
+        for ((x, y), _) in Self::footprint(middle) {
             let mut run: Option<[f64; 2]> = None;
             for o in self.texel(x, y).iter().filter(|o| o.id != own) {
                 let (a0, a1) = (o.piece.t[0].max(t0), o.piece.t[1].min(t1));
