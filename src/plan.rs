@@ -11,6 +11,7 @@ use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
+use crate::render::triangles::shadow::light_camera;
 use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
 use crate::scene::camera::Camera;
 use crate::scene::{Object, Scene};
@@ -107,6 +108,10 @@ pub struct Plan<'a> {
     pub tolerance_px: f64,
     /// Whether any light shades the surfels.
     pub lit: bool,
+    /// The camera of each shadow-casting light's shadow map, in
+    /// [`crate::scene::Lighting::sources`] order: made once here, for every frame the method
+    /// draws (empty unless triangles are drawn as triangles).
+    pub shadow_cameras: Vec<Camera>,
 }
 
 impl<'a> Plan<'a> {
@@ -174,12 +179,13 @@ impl<'a> Plan<'a> {
                 }
             })
             .collect();
-        let plan = Plan {
+        let mut plan = Plan {
             scene,
             method: method.clone(),
             objects,
             tolerance_px,
             lit: scene.lighting.is_lit(),
+            shadow_cameras: Vec::new(),
         };
         let items = plan.triangle_items();
         if items > MAX_TRIANGLE_ITEMS {
@@ -189,6 +195,15 @@ impl<'a> Plan<'a> {
                     "{items} triangle items (triangles × sub-segments) are more than the {MAX_TRIANGLE_ITEMS} one render may hold: simplify the mesh, or raise --tolerance for fewer sub-segments"
                 ),
             ));
+        }
+        if plan.any_triangles() {
+            plan.shadow_cameras = scene
+                .lighting
+                .sources()
+                .iter()
+                .filter(|source| source.shadows())
+                .map(|source| light_camera(source, scene, &plan))
+                .collect();
         }
         Ok(plan)
     }

@@ -100,10 +100,7 @@ impl Setting {
             Method::Analytic {
                 tolerance_px,
                 receivers,
-            } => match receivers {
-                Receivers::Sampled => format!("τ={tolerance_px}px"),
-                Receivers::Traced => format!("τ={tolerance_px}px traced"),
-            },
+            } => format!("τ={tolerance_px}px{}", traced(*receivers, " traced")),
         };
         self.with_lod(knob, " lod=off")
     }
@@ -149,12 +146,20 @@ impl Setting {
             Method::Analytic {
                 tolerance_px,
                 receivers,
-            } => match receivers {
-                Receivers::Sampled => format!("analytic-tol{tolerance_px}"),
-                Receivers::Traced => format!("analytic-tol{tolerance_px}-traced"),
-            },
+            } => format!(
+                "analytic-tol{tolerance_px}{}",
+                traced(*receivers, "-traced")
+            ),
         };
         self.with_lod(stem, "-lod-off")
+    }
+}
+
+/// `mark` for `analytic` with traced receivers, nothing for the default sampled ones.
+fn traced(receivers: Receivers, mark: &str) -> &str {
+    match receivers {
+        Receivers::Sampled => "",
+        Receivers::Traced => mark,
     }
 }
 

@@ -220,20 +220,60 @@ impl Lighting {
     /// `position`: Σ intensity · max(0, N·L), each spot within its cone.
     #[must_use]
     pub fn direct(&self, normal: DVec3, position: DVec3) -> f64 {
-        let directional: f64 = self
-            .lights
+        self.sources()
             .iter()
-            .map(|l| l.intensity * normal.dot(l.direction).max(0.0))
-            .sum();
-        let spots: f64 = self
-            .spots
+            .map(|source| source.irradiance(normal, position))
+            .sum()
+    }
+
+    /// Every light: the directional ones, then the spots.
+    #[must_use]
+    pub fn sources(&self) -> Vec<LightSource<'_>> {
+        self.lights
             .iter()
-            .map(|s| {
-                let towards = (s.position - position).normalize_or_zero();
-                s.reach(position) * normal.dot(towards).max(0.0)
-            })
-            .sum();
-        directional + spots
+            .map(LightSource::Directional)
+            .chain(self.spots.iter().map(LightSource::Spot))
+            .collect()
+    }
+}
+
+/// One light of either kind, as shading and shadows ask of it.
+#[derive(Clone, Copy, Debug)]
+pub enum LightSource<'a> {
+    /// A directional light.
+    Directional(&'a Light),
+    /// A spot light.
+    Spot(&'a Spot),
+}
+
+impl LightSource<'_> {
+    /// Whether it casts shadows.
+    #[must_use]
+    pub fn shadows(&self) -> bool {
+        match self {
+            LightSource::Directional(l) => l.shadows,
+            LightSource::Spot(s) => s.shadows,
+        }
+    }
+
+    /// Unit vector from world point `p` towards the light.
+    #[must_use]
+    pub fn towards(&self, p: DVec3) -> DVec3 {
+        match self {
+            LightSource::Directional(l) => l.direction,
+            LightSource::Spot(s) => (s.position - p).normalize_or_zero(),
+        }
+    }
+
+    /// Irradiance at world point `p` on a surface with unit `normal`, unshadowed: the light's
+    /// reach there (a spot's within its cone) times max(0, N·L).
+    #[must_use]
+    pub fn irradiance(&self, normal: DVec3, p: DVec3) -> f64 {
+        let reach = match self {
+            LightSource::Directional(l) => l.intensity,
+            LightSource::Spot(s) => s.reach(p),
+        };
+        reach * normal.dot(self.towards(p)).max(0.0)
     }
 }
 

@@ -22,9 +22,9 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::raster::TILE_PX;
 use crate::raster::{TileGrid, TileLists};
 use crate::render::{Method, Receivers};
-use crate::scene::{Camera, Object, Scene, TriangleMesh};
+use crate::scene::{Camera, LightSource, Object, Scene, TriangleMesh};
 use intervals::{resolve, Interval, ResolveScratch};
-use shadow::{Occluder, Occluders, ShadowMap, Source};
+use shadow::{Occluder, Occluders, ShadowMap};
 use tct::{EdgeFunctions, MovingTriangle};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
@@ -151,8 +151,8 @@ struct Prepared<'a> {
     /// Camera space → world, for where shading happens.
     view_to_world: DAffine3,
     exposure: Exposure,
-    /// Every light, in [`Source::all`] order.
-    sources: Vec<Source<'a>>,
+    /// Every light, in [`crate::scene::Lighting::sources`] order.
+    sources: Vec<LightSource<'a>>,
     /// The shadow map of each light that casts shadows, in the same order.
     shadows: Vec<ShadowMap>,
     /// How receivers sweeping shadow-map texels are shadowed.
@@ -180,12 +180,11 @@ pub struct TriangleImage {
 #[must_use]
 pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
     let scene = plan.scene();
-    let shadows = Source::all(&scene.lighting)
+    let shadows = plan
+        .shadow_cameras
         .iter()
-        .filter(|source| source.shadows())
-        .map(|source| {
-            let camera = source.camera(scene, plan);
-            ShadowMap::new(Prepared::new(plan, camera, exposure, Vec::new()).occluders())
+        .map(|camera| {
+            ShadowMap::new(Prepared::new(plan, camera.clone(), exposure, Vec::new()).occluders())
         })
         .collect();
     Prepared::new(plan, scene.camera.clone(), exposure, shadows).render()
@@ -208,13 +207,18 @@ impl<'a> Prepared<'a> {
             let Some(mesh) = object.mesh() else {
                 continue;
             };
-            let times: Vec<[f64; 2]> = match (exposure, &object_plan.motion) {
-                (Exposure::Instant(t), _) => vec![[t, t]],
+            // Per segment: the instants its corners are posed at, and the time it stands for (a
+            // still object's one pose stands for the whole shutter).
+            let shutter = [scene.shutter.open, scene.shutter.close];
+            let segments: Vec<([f64; 2], [f64; 2])> = match (exposure, &object_plan.motion) {
+                (Exposure::Instant(t), _) => vec![([t, t], [t, t])],
                 (Exposure::Shutter, ObjectMotion::Still) => {
                     let middle = scene.shutter.middle();
-                    vec![[middle, middle]]
+                    vec![([middle, middle], shutter)]
                 }
-                (Exposure::Shutter, ObjectMotion::Moving { segments, .. }) => segments.clone(),
+                (Exposure::Shutter, ObjectMotion::Moving { segments, .. }) => {
+                    segments.iter().map(|&s| (s, s)).collect()
+                }
             };
             let corners_at = |t: f64| {
                 let to_view = camera_ref.view * object.motion.pose_at(t).to_affine();
@@ -223,25 +227,19 @@ impl<'a> Prepared<'a> {
                     .map(|&p| to_view.transform_point3(p))
                     .collect::<Vec<DVec3>>()
             };
-            let segments: Vec<Segment> = times
-                .iter()
-                .map(|&[t0, t1]| {
+            let segments: Vec<Segment> = segments
+                .into_iter()
+                .map(|([t0, t1], time)| {
                     let start = corners_at(t0);
                     let end = if t1 == t0 {
                         start.clone()
                     } else {
                         corners_at(t1)
                     };
-                    let rotation = [t0, t1].map(|t| object.motion.pose_at(t).rotation_matrix());
                     Segment {
-                        rotation,
+                        rotation: [t0, t1].map(|t| object.motion.pose_at(t).rotation_matrix()),
                         still: t1 == t0,
-                        time: match (exposure, &object_plan.motion) {
-                            (Exposure::Shutter, ObjectMotion::Still) => {
-                                [scene.shutter.open, scene.shutter.close]
-                            }
-                            _ => [t0, t1],
-                        },
+                        time,
                         start,
                         end,
                     }
@@ -259,7 +257,7 @@ impl<'a> Prepared<'a> {
             camera,
             view_to_world,
             exposure,
-            sources: Source::all(&scene.lighting),
+            sources: scene.lighting.sources(),
             shadows,
             receivers: match plan.method() {
                 Method::Analytic { receivers, .. } => *receivers,
@@ -325,13 +323,11 @@ impl<'a> Prepared<'a> {
                         triangle: t as u32,
                         bounds: [0; 4],
                     };
-                    let Placed {
-                        triangle, window, ..
-                    } = self.triangle(&item);
-                    if !(window[1] > window[0]) {
+                    let triangle = self.corners(&item);
+                    let Some(window) = triangle.in_front(camera.near) else {
                         behind_near += 1;
                         continue;
-                    }
+                    };
                     if mesh.closed && triangle.back_facing_throughout() {
                         continue;
                     }
@@ -733,37 +729,21 @@ impl<'a> Prepared<'a> {
     }
 
     /// The colour the ray `d` sees on `item` at segment fraction `s` (time `t`), in the shadows
-    /// of that instant.
+    /// of that instant: corner colours and normals interpolated perspective-correctly, Lambert
+    /// shading.
     fn shade(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64, t: f64) -> [f64; 3] {
-        let own = (item.object, item.triangle);
-        let visibility: Vec<f64> = if self.shadows.is_empty() {
-            Vec::new()
-        } else {
-            let (normal, p) = self.surface(item, triangle, d, s);
-            self.shadows
-                .iter()
-                .map(|map| map.visibility(p, normal, t, own))
-                .collect()
-        };
-        self.shade_lit(item, triangle, d, s, &visibility)
-    }
-
-    /// The colour the ray `d` sees on `item` at segment fraction `s`, each shadowed light
-    /// reaching it by its share in `visibility` (in [`Source::all`] order of the shadowed ones).
-    fn shade_lit(
-        &self,
-        item: &Item,
-        triangle: &MovingTriangle,
-        d: DVec3,
-        s: f64,
-        visibility: &[f64],
-    ) -> [f64; 3] {
         let albedo = self.albedo(item, triangle, d, s);
         if !self.scene.lighting.is_lit() {
             return albedo;
         }
         let (normal, p) = self.surface(item, triangle, d, s);
-        let irradiance = self.irradiance(normal, p, visibility);
+        let own = (item.object, item.triangle);
+        let visibility: Vec<f64> = self
+            .shadows
+            .iter()
+            .map(|map| map.visibility(p, normal, t, own))
+            .collect();
+        let irradiance = self.irradiance(normal, p, &visibility);
         albedo.map(|c| c * irradiance)
     }
 
@@ -797,7 +777,7 @@ impl<'a> Prepared<'a> {
                 } else {
                     1.0
                 };
-                share * source.reach(p) * normal.dot(source.towards(p)).max(0.0)
+                share * source.irradiance(normal, p)
             })
             .sum();
         lighting.ambient + direct

@@ -15,7 +15,7 @@ use glam::{DVec2, DVec3};
 
 use super::intervals::Interval;
 use crate::plan::Plan;
-use crate::scene::{Camera, Light, Lighting, Scene, Spot};
+use crate::scene::{Camera, LightSource, Scene};
 
 /// Depth bias against self-shadowing, in texel widths at the receiver's depth, times
 /// 1 + tan of the angle between the receiver's normal and the light (capped at
@@ -33,100 +33,51 @@ const DIRECTIONAL_DISTANCE: f64 = 50.0;
 /// Most point samples of a receiver sweeping the shadow map, per visible piece.
 pub const MAX_RECEIVER_SAMPLES: usize = 256;
 
-/// A light, as shading and shadows need it.
-#[derive(Clone, Copy, Debug)]
-pub enum Source<'a> {
-    /// A directional light.
-    Directional(&'a Light),
-    /// A spot light.
-    Spot(&'a Spot),
-}
-
-impl<'a> Source<'a> {
-    /// Every light of `lighting`: the directional ones, then the spots.
-    #[must_use]
-    pub fn all(lighting: &'a Lighting) -> Vec<Source<'a>> {
-        lighting
-            .lights
-            .iter()
-            .map(Source::Directional)
-            .chain(lighting.spots.iter().map(Source::Spot))
-            .collect()
-    }
-
-    /// Whether it casts shadows.
-    #[must_use]
-    pub fn shadows(&self) -> bool {
-        match self {
-            Source::Directional(l) => l.shadows,
-            Source::Spot(s) => s.shadows,
+/// The camera of `source`'s shadow map: the spot's own view of its cone, or for a directional
+/// light a narrow perspective view from far along its direction, framing the triangle objects'
+/// bounds over the exposure (the plan makes them once, [`Plan::shadow_cameras`]).
+#[must_use]
+pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Camera {
+    let size = scene.lighting.shadow_map;
+    let up = |direction: DVec3| {
+        if direction.cross(DVec3::Y).length() > 1e-3 {
+            DVec3::Y
+        } else {
+            DVec3::X
         }
-    }
-
-    /// Unit vector from world point `p` towards the light.
-    #[must_use]
-    pub fn towards(&self, p: DVec3) -> DVec3 {
-        match self {
-            Source::Directional(l) => l.direction,
-            Source::Spot(s) => (s.position - p).normalize_or_zero(),
+    };
+    let camera = match source {
+        LightSource::Spot(s) => {
+            let fov = 2.0 * s.angle.to_degrees();
+            Camera::new(
+                s.position,
+                s.position + s.direction,
+                up(s.direction),
+                fov,
+                size,
+                size,
+            )
         }
-    }
-
-    /// Irradiance scale at `p` before the cosine law.
-    #[must_use]
-    pub fn reach(&self, p: DVec3) -> f64 {
-        match self {
-            Source::Directional(l) => l.intensity,
-            Source::Spot(s) => s.reach(p),
+        LightSource::Directional(l) => {
+            let (centre, radius) = triangle_bounds(scene, plan);
+            let distance = DIRECTIONAL_DISTANCE * radius;
+            let fov = 2.0 * (1.05 / DIRECTIONAL_DISTANCE).atan().to_degrees();
+            Camera::new(
+                centre + l.direction * distance,
+                centre,
+                up(l.direction),
+                fov,
+                size,
+                size,
+            )
+            .and_then(|c| c.with_near(distance - 1.5 * radius))
         }
-    }
-
-    /// The camera of its shadow map: the spot's own view of its cone, or for a directional light
-    /// a narrow perspective view from far along its direction, framing the triangle objects'
-    /// bounds over the exposure.
-    #[must_use]
-    pub fn camera(&self, scene: &Scene, plan: &Plan) -> Camera {
-        let size = scene.lighting.shadow_map;
-        let up = |direction: DVec3| {
-            if direction.cross(DVec3::Y).length() > 1e-3 {
-                DVec3::Y
-            } else {
-                DVec3::X
-            }
-        };
-        let (centre, radius) = triangle_bounds(scene, plan);
-        let camera = match self {
-            Source::Spot(s) => {
-                let fov = 2.0 * s.angle.to_degrees();
-                Camera::new(
-                    s.position,
-                    s.position + s.direction,
-                    up(s.direction),
-                    fov,
-                    size,
-                    size,
-                )
-            }
-            Source::Directional(l) => {
-                let distance = DIRECTIONAL_DISTANCE * radius;
-                let fov = 2.0 * (1.05 / DIRECTIONAL_DISTANCE).atan().to_degrees();
-                Camera::new(
-                    centre + l.direction * distance,
-                    centre,
-                    up(l.direction),
-                    fov,
-                    size,
-                    size,
-                )
-                .and_then(|c| c.with_near(distance - 1.5 * radius))
-            }
-        };
-        // Both are well formed: a spot's target differs from its position and its angle is in
-        // range; a directional camera looks at a centre it is far from.
-        camera
-            .and_then(|c| c.with_spatial_samples(1))
-            .unwrap_or_else(|_| scene.camera.clone())
-    }
+    };
+    // Both are well formed: a spot's target differs from its position and its angle is in
+    // range; a directional camera looks at a centre it is far from.
+    camera
+        .and_then(|c| c.with_spatial_samples(1))
+        .unwrap_or_else(|_| scene.camera.clone())
 }
 
 /// Centre and radius of a sphere around every triangle object drawn as triangles, at every
