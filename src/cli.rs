@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::io::image as output;
+use streak::io::obj::write_mesh;
 use streak::lod::Lod;
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
 use streak::render::{
@@ -14,6 +15,7 @@ use streak::render::{
     MAX_SUBFRAMES,
 };
 use streak::scene::camera::check_image_size;
+use streak::simplify::{simplify, Options as SimplifyOptions, Weighting, MAX_VALENCE};
 use streak::study::{self, StudyOptions};
 use streak::style::Style;
 use streak::surfels::Budget;
@@ -36,6 +38,40 @@ enum Command {
     /// Render every scene of a gallery folder with each method and style, and write a page that
     /// compares them.
     Gallery(GalleryArgs),
+    /// Simplify a triangle mesh by quadric edge collapse, optionally weighted by a motion
+    /// direction (Zhang et al. 2014), and write it as OBJ or PLY.
+    Simplify(SimplifyArgs),
+}
+
+#[derive(Args)]
+#[command(group(clap::ArgGroup::new("amount").required(true).args(["faces", "ratio"])))]
+struct SimplifyArgs {
+    /// The mesh to simplify (.obj or .ply, optionally .gz).
+    mesh: PathBuf,
+    /// Where to write the result (.obj or .ply).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Faces to keep.
+    #[arg(long)]
+    faces: Option<usize>,
+    /// Share of the faces to keep, in (0, 1].
+    #[arg(long)]
+    ratio: Option<f64>,
+    /// Motion direction X,Y,Z (object space): edges across it collapse first.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 3,
+        allow_hyphen_values = true,
+        conflicts_with = "isotropic"
+    )]
+    direction: Option<Vec<f64>>,
+    /// Plain quadric costs, no direction weighting (the default without --direction).
+    #[arg(long)]
+    isotropic: bool,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
 }
 
 /// The rendering methods, as the command line names them; [`method`] adds each one's settings.
@@ -202,6 +238,7 @@ pub fn run() -> Result<()> {
         Command::Render(a) => a.image.threads,
         Command::Study(a) => a.image.threads,
         Command::Gallery(a) => a.image.threads,
+        Command::Simplify(a) => a.threads,
     };
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
@@ -223,6 +260,7 @@ pub fn run() -> Result<()> {
         Command::Render(args) => run_render(args),
         Command::Study(args) => run_study(args),
         Command::Gallery(args) => run_gallery(args),
+        Command::Simplify(args) => run_simplify(args),
     })
 }
 
@@ -528,5 +566,79 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
         eprintln!("{}: {}", row.name, line.join(", "));
     }
     eprintln!("wrote {}", args.output.join("index.html").display());
+    Ok(())
+}
+
+fn run_simplify(args: SimplifyArgs) -> Result<()> {
+    let mesh = streak::surfels::Mesh::read(&args.mesh)?;
+    let faces_in = mesh.triangles.len();
+    let target = match (args.faces, args.ratio) {
+        (Some(faces), _) => faces,
+        (None, Some(ratio)) if ratio > 0.0 && ratio <= 1.0 => {
+            (ratio * faces_in as f64).round() as usize
+        }
+        (None, ratio) => {
+            return Err(Error::Usage(format!(
+                "--ratio {}: the share of faces kept is above 0 and at most 1",
+                ratio.unwrap_or(f64::NAN)
+            )))
+        }
+    };
+    let weighting = match &args.direction {
+        Some(d) => {
+            let direction = match d.as_slice() {
+                &[x, y, z] => glam::DVec3::new(x, y, z),
+                _ => glam::DVec3::NAN,
+            };
+            if !(direction.is_finite() && direction.length() > 0.0) {
+                return Err(Error::Usage(format!(
+                    "--direction {d:?}: give a motion direction as X,Y,Z, three finite numbers not all zero"
+                )));
+            }
+            Weighting::Direction(direction)
+        }
+        None => Weighting::Isotropic,
+    };
+    let options = SimplifyOptions {
+        target_faces: target,
+        weighting,
+        limits: None,
+    };
+    let progress = bar(faces_in.saturating_sub(target) as u64, "collapsing");
+    let start = Instant::now();
+    let result = simplify(&mesh, &options, (&[], 0), &mut |faces| {
+        progress.set_position(faces_in.saturating_sub(faces) as u64);
+    })?;
+    progress.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    write_mesh(&result.mesh, &args.output)?;
+    let r = &result.repairs;
+    let mut report = format!(
+        "wrote {} ({faces_in} → {} faces, {} vertices, in {seconds:.3} s)\n",
+        args.output.display(),
+        result.mesh.triangles.len(),
+        result.mesh.positions.len(),
+    );
+    if !result.reached_target {
+        report += &format!(
+            "  stopped above {target} faces: every remaining collapse would fold a face ({}), break the surface's topology ({}) or gather more than {MAX_VALENCE} faces on a vertex ({})\n",
+            result.stats.fold_refusals, result.stats.topology_refusals, result.stats.valence_refusals
+        );
+    }
+    for (count, what) in [
+        (r.welded, "vertices at the same position welded"),
+        (r.repeated_corners, "faces with a repeated corner dropped"),
+        (r.duplicate_faces, "faces repeating another dropped"),
+        (
+            r.non_manifold_edges,
+            "edges shared by more than two faces kept in place",
+        ),
+        (r.isolated, "vertices no face uses left out"),
+    ] {
+        if count > 0 {
+            report += &format!("  repaired: {count} {what}\n");
+        }
+    }
+    print_quietly(&report);
     Ok(())
 }

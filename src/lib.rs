@@ -65,6 +65,7 @@ mod project;
 mod raster;
 pub mod render;
 pub mod scene;
+pub mod simplify;
 #[cfg(feature = "cli")]
 pub mod study;
 pub mod style;

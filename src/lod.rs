@@ -181,12 +181,17 @@ impl ObjectLod {
     };
 }
 
-/// Merge `object`'s surfels for a render that sees it at the instants `times` (increasing; the
+/// Merge `surfels` (of `object`: its own, or resampled from its simplified mesh) for a render that sees it at the instants `times` (increasing; the
 /// middle one is where cells are laid out), in `cells`: along the motion they follow each surfel's
 /// screen path through the instants.
 #[must_use]
-pub fn merge(camera: &Camera, object: &Object, times: &[f64], cells: Cells) -> ObjectLod {
-    let surfels = object.surfels();
+pub fn merge(
+    camera: &Camera,
+    object: &Object,
+    surfels: &[Surfel],
+    times: &[f64],
+    cells: Cells,
+) -> ObjectLod {
     let instants: Vec<Instant> = times
         .iter()
         .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))

@@ -14,7 +14,9 @@ use crate::project::Culled;
 use crate::render::triangles::shadow::light_camera;
 use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
 use crate::scene::camera::Camera;
-use crate::scene::{Object, Scene};
+use crate::scene::{Object, Scene, TriangleMesh};
+use crate::simplify::speed::{self, DetailRule, ScreenMotion};
+use crate::surfels::Mesh;
 use crate::surfels::Surfel;
 use glam::{DVec2, DVec3};
 
@@ -90,10 +92,78 @@ pub struct ObjectPlan {
     pub name: String,
     /// Its surfel count.
     pub surfels: usize,
+    /// Its face count, if it is a triangle mesh.
+    pub faces: usize,
     /// How it will be drawn.
     pub motion: ObjectMotion,
     /// The surfels the method draws where detail cannot show (see [`crate::lod`]).
     pub lod: ObjectLod,
+    /// A moving mesh's level of detail from its screen speed (see [`crate::simplify::speed`]).
+    pub mesh_lod: MeshLod,
+}
+
+/// What the plan did to an object's triangle mesh.
+#[derive(Clone, Debug)]
+pub enum MeshLod {
+    /// Not a triangle mesh.
+    NoMesh,
+    /// Drawn at full detail, for the reason given.
+    Full(&'static str),
+    /// Simplified as far as its screen speed allows (Zhang et al. 2014, eq. 8).
+    Simplified {
+        /// The simplified triangles and how they were made.
+        mesh: speed::Shared,
+        /// Slowest and fastest vertex on screen, px per shutter.
+        speed_px: [f64; 2],
+        /// Surfels resampled from the simplified mesh for the splat methods, if they were.
+        surfels: Option<Vec<Surfel>>,
+    },
+}
+
+impl PartialEq for MeshLod {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (MeshLod::NoMesh, MeshLod::NoMesh) => true,
+            (MeshLod::Full(a), MeshLod::Full(b)) => a == b,
+            (MeshLod::Simplified { mesh: a, .. }, MeshLod::Simplified { mesh: b, .. }) => {
+                std::sync::Arc::ptr_eq(a, b)
+            }
+            _ => false,
+        }
+    }
+}
+
+impl MeshLod {
+    /// One line for `--explain`, or `None` for an object without a mesh.
+    fn explain(&self, faces_in: usize, rule: &DetailRule) -> Option<String> {
+        Some(match self {
+            MeshLod::NoMesh => return None,
+            MeshLod::Full(why) => format!("mesh: {faces_in} faces kept: {why}"),
+            MeshLod::Simplified {
+                mesh,
+                speed_px,
+                surfels,
+            } => {
+                let (triangles, result) = &**mesh;
+                format!(
+                    "mesh: {faces_in} faces → {} (screen speed {:.0}–{:.0} px per shutter; projected perimeters up to {} v + {} px; collapses refused: {} at the detail limit, {} folding, {} topology, {} valence){}",
+                    triangles.triangles.len(),
+                    speed_px[0],
+                    speed_px[1],
+                    rule.sigma_speed,
+                    rule.sigma_base,
+                    result.stats.limit_refusals,
+                    result.stats.fold_refusals,
+                    result.stats.topology_refusals,
+                    result.stats.valence_refusals,
+                    match surfels {
+                        Some(s) => format!("; {} surfels resampled from it", s.len()),
+                        None => String::new(),
+                    }
+                )
+            }
+        })
+    }
 }
 
 /// The plan for rendering one scene with one method. It borrows the scene, so it cannot be paired
@@ -165,20 +235,32 @@ impl<'a> Plan<'a> {
                 } else {
                     ObjectMotion::Still
                 };
+                let mesh_lod = mesh_lod(scene, object, moves, method, lod)?;
+                let surfels = match &mesh_lod {
+                    MeshLod::Simplified {
+                        surfels: Some(s), ..
+                    } => s.as_slice(),
+                    _ => object.surfels(),
+                };
                 let kernels = matches!(method, Method::Kernel3d { .. });
-                let lod = match lod.blurred_cells(kernels) {
+                let mut lod = match lod.blurred_cells(kernels) {
                     _ if draws_triangles(method, object) => ObjectLod::OFF,
                     None => ObjectLod::OFF,
-                    Some(cells) => object_lod(scene, object, &motion, method, cells),
+                    Some(cells) => object_lod(scene, object, surfels, &motion, method, cells),
                 };
-                ObjectPlan {
+                if lod.merged.is_none() && surfels.len() != object.surfels().len() {
+                    lod.merged = Some(surfels.to_vec());
+                }
+                Ok(ObjectPlan {
                     name: object.name.clone(),
                     surfels: object.surfels().len(),
+                    faces: object.mesh().map_or(0, |m| m.triangles.len()),
                     motion,
                     lod,
-                }
+                    mesh_lod,
+                })
             })
-            .collect();
+            .collect::<Result<Vec<_>>>()?;
         let mut plan = Plan {
             scene,
             method: method.clone(),
@@ -231,7 +313,7 @@ impl<'a> Plan<'a> {
             .enumerate()
             .filter(|(i, _)| self.draws_triangles(*i))
             .map(|(_, (object, plan))| {
-                let triangles = object.mesh().map_or(0, |m| m.triangles.len());
+                let triangles = self.mesh(object, plan).map_or(0, |m| m.triangles.len());
                 match (&self.method, &plan.motion) {
                     (Method::Analytic { .. }, ObjectMotion::Moving { segments, .. }) => {
                         triangles * segments.len()
@@ -267,6 +349,20 @@ impl<'a> Plan<'a> {
         match &self.objects[index].lod.merged {
             Some(merged) => merged,
             None => self.scene.objects[index].surfels(),
+        }
+    }
+
+    /// The triangles of object `index` as the method draws them: simplified by the mesh level of
+    /// detail, or the object's own (`None` for an object without a mesh).
+    #[must_use]
+    pub fn mesh_of(&self, index: usize) -> Option<&TriangleMesh> {
+        self.mesh(&self.scene.objects[index], &self.objects[index])
+    }
+
+    fn mesh<'p>(&'p self, object: &'a Object, plan: &'p ObjectPlan) -> Option<&'p TriangleMesh> {
+        match &plan.mesh_lod {
+            MeshLod::Simplified { mesh, .. } => Some(&mesh.0),
+            _ => object.mesh(),
         }
     }
 
@@ -307,6 +403,9 @@ impl<'a> Plan<'a> {
                         o.name, o.surfels
                     ));
                     line(format!("    {}", o.lod.outcome.explain()));
+                    if let Some(mesh) = o.mesh_lod.explain(o.faces, &self.scene.mesh_detail) {
+                        line(format!("    {mesh}"));
+                    }
                 }
                 ObjectMotion::Moving {
                     segments,
@@ -323,6 +422,9 @@ impl<'a> Plan<'a> {
                         if segments.len() == 1 { "" } else { "s" },
                     ));
                     line(format!("    {}", o.lod.outcome.explain()));
+                    if let Some(mesh) = o.mesh_lod.explain(o.faces, &self.scene.mesh_detail) {
+                        line(format!("    {mesh}"));
+                    }
                     match capped {
                         Some(SegmentCap::PerInterval) => line(format!(
                             "    capped at {MAX_SEGMENTS_PER_INTERVAL} sub-segments per keyframe interval: the tolerance does not hold"
@@ -370,6 +472,7 @@ fn draws_triangles(method: &Method, object: &Object) -> bool {
 fn object_lod(
     scene: &Scene,
     object: &Object,
+    surfels: &[Surfel],
     motion: &ObjectMotion,
     method: &Method,
     blurred: Cells,
@@ -378,9 +481,13 @@ fn object_lod(
     let middle = scene.shutter.middle();
     let camera = &scene.camera;
     match (method, motion) {
-        (Method::Static { time }, _) => {
-            lod::merge(camera, object, &[time.unwrap_or(middle)], Cells::Square)
-        }
+        (Method::Static { time }, _) => lod::merge(
+            camera,
+            object,
+            surfels,
+            &[time.unwrap_or(middle)],
+            Cells::Square,
+        ),
         (Method::Hint { .. }, ObjectMotion::Still) => ObjectLod {
             merged: None,
             outcome: LodOutcome::Sharp,
@@ -402,15 +509,20 @@ fn object_lod(
                 Cells::AlongMotion(share) => Cells::AlongMotion(share * copy),
                 Cells::Square => Cells::Square,
             };
-            lod::merge(camera, object, &times, cells)
+            lod::merge(camera, object, surfels, &times, cells)
         }
-        (_, ObjectMotion::Still) => lod::merge(camera, object, &[middle], Cells::Square),
-        (Method::Reference { .. }, ObjectMotion::Moving { .. }) => {
-            lod::merge(camera, object, &[open, middle, close], Cells::Square)
-        }
+        (_, ObjectMotion::Still) => lod::merge(camera, object, surfels, &[middle], Cells::Square),
+        (Method::Reference { .. }, ObjectMotion::Moving { .. }) => lod::merge(
+            camera,
+            object,
+            surfels,
+            &[open, middle, close],
+            Cells::Square,
+        ),
         (_, ObjectMotion::Moving { segments, .. }) => lod::merge(
             camera,
             object,
+            surfels,
             &path_times(segments, [open, close]),
             blurred,
         ),
@@ -659,4 +771,68 @@ fn plan_motion(
         longest_segment_px,
         capped,
     }
+}
+
+/// The level of detail of a moving triangle mesh for `method` (Zhang et al. 2014 §5, Appendix B):
+/// simplified as far as each vertex's screen speed allows for the shutter, drawn so by
+/// `analytic` and each `reference` frame, and resampled into surfels for `blur` and `kernel3d`
+/// when the mesh has one colour. Still meshes, `static` (a sharp instant) and hints (whose
+/// object is drawn sharp) keep full detail.
+fn mesh_lod(
+    scene: &Scene,
+    object: &Object,
+    moves: bool,
+    method: &Method,
+    lod: Lod,
+) -> Result<MeshLod> {
+    let Some(mesh) = object.mesh() else {
+        return Ok(MeshLod::NoMesh);
+    };
+    let why = match method {
+        _ if lod == Lod::Off => Some("--lod off"),
+        _ if !moves => Some("still while the shutter is open"),
+        Method::Static { .. } => Some("a sharp instant"),
+        Method::Hint { .. } => Some("a hint draws the object sharp"),
+        _ => None,
+    };
+    if let Some(why) = why {
+        return Ok(MeshLod::Full(why));
+    }
+    let shutter = [scene.shutter.open, scene.shutter.close];
+    let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
+    let limits = motion.limits(&scene.mesh_detail);
+    let speed_px = motion
+        .speed_px
+        .iter()
+        .fold([f64::INFINITY, 0.0], |[lo, hi], &v| [lo.min(v), hi.max(v)]);
+    // A mesh the simplifier cannot take (no face with an area left, say) is drawn as it is.
+    let Ok(shared) = speed::simplified(mesh, limits, motion.motion) else {
+        return Ok(MeshLod::Full("the simplifier could not take it"));
+    };
+    let simplified = &shared.0;
+    let one_colour = simplified.colours.windows(2).all(|w| w[0] == w[1]);
+    let surfels = if draws_triangles(method, object) || !one_colour {
+        None
+    } else {
+        // As many surfels per face as the full mesh had.
+        let count = (object.surfels().len() as f64 * simplified.triangles.len() as f64
+            / mesh.triangles.len() as f64)
+            .ceil()
+            .max(1.0) as usize;
+        let source = Mesh {
+            positions: simplified.positions.clone(),
+            triangles: simplified.triangles.clone(),
+        };
+        let colour = simplified.colours.first().copied().unwrap_or_default();
+        let mut surfels = crate::surfels::from_mesh(&source, count, false)?;
+        for s in &mut surfels {
+            s.colour = colour;
+        }
+        Some(surfels)
+    };
+    Ok(MeshLod::Simplified {
+        mesh: shared,
+        speed_px,
+        surfels,
+    })
 }

@@ -15,6 +15,7 @@ pub fn args() -> impl Fn(usize, &str) -> String {
 
 /// The scene at `path`, `width` pixels wide with its aspect ratio (and vertical field of view)
 /// kept; returns it and its height.
+#[allow(dead_code)] // Not every benchmark loads a gallery scene.
 pub fn scene_at_width(path: &str, width: u32) -> streak::Result<(Scene, u32)> {
     let mut scene = Scene::load(Path::new(path))?;
     let (w, h) = (scene.camera.width, scene.camera.height);

@@ -1,12 +1,13 @@
-//! Triangle mesh files: Wavefront OBJ read here, PLY faces in [`super::ply`], and a mesh read
-//! by its file name.
+//! Triangle mesh files: Wavefront OBJ read here, PLY faces in [`super::ply`], a mesh read by its
+//! file name, and a mesh written as OBJ or PLY ([`write_mesh`]).
 
+use std::io::Write;
 use std::path::Path;
 
 use glam::DVec3;
 
 use super::ply::parse_ply_mesh;
-use super::read::read_file;
+use super::read::{self, read_file};
 use crate::error::{Error, Result};
 use crate::surfels::mesh::Mesh;
 
@@ -186,6 +187,70 @@ pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<Mesh> {
         ));
     }
     Ok(mesh)
+}
+
+/// Write `mesh` as a file its name says: Wavefront OBJ (`.obj`) or binary little-endian PLY
+/// (`.ply`), positions as double. Errors name the file.
+pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
+    let format = MeshFormat::of(path)
+        .filter(|_| !read::is_gzipped(path))
+        .ok_or_else(|| {
+            Error::input(
+                path,
+                "file name",
+                "a mesh is written as .obj or .ply (not gzipped)",
+            )
+        })?;
+    let file = std::fs::File::create(path)
+        .map_err(|e| Error::input(path, "file", format!("cannot create it: {e}")))?;
+    let mut out = std::io::BufWriter::new(file);
+    let written = match format {
+        MeshFormat::Obj => write_obj(mesh, &mut out),
+        MeshFormat::Ply => write_ply_mesh(mesh, &mut out),
+    };
+    written
+        .and_then(|()| out.flush())
+        .map_err(|e| Error::input(path, "file", format!("cannot write it: {e}")))
+}
+
+/// `v x y z` per vertex (shortest text that reads back to the same double) and `f a b c` per
+/// triangle, counted from 1.
+fn write_obj(mesh: &Mesh, out: &mut impl Write) -> std::io::Result<()> {
+    writeln!(out, "# written by streak")?;
+    for p in &mesh.positions {
+        writeln!(out, "v {} {} {}", p.x, p.y, p.z)?;
+    }
+    for t in &mesh.triangles {
+        writeln!(out, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+    }
+    Ok(())
+}
+
+/// Binary little-endian PLY: double x, y, z per vertex, a list of three uint per face.
+fn write_ply_mesh(mesh: &Mesh, out: &mut impl Write) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "ply\nformat binary_little_endian 1.0\ncomment written by streak"
+    )?;
+    writeln!(out, "element vertex {}", mesh.positions.len())?;
+    writeln!(
+        out,
+        "property double x\nproperty double y\nproperty double z"
+    )?;
+    writeln!(out, "element face {}", mesh.triangles.len())?;
+    writeln!(out, "property list uchar uint vertex_indices\nend_header")?;
+    for p in &mesh.positions {
+        for c in p.to_array() {
+            out.write_all(&c.to_le_bytes())?;
+        }
+    }
+    for t in &mesh.triangles {
+        out.write_all(&[3])?;
+        for v in t {
+            out.write_all(&v.to_le_bytes())?;
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@ use crate::scene::{
     Camera, Keyframe, Light, Lighting, Motion, Object, Pose, Scene, Shutter, ShutterShape, Spot,
     TriangleMesh,
 };
+use crate::simplify::speed::DetailRule;
 use crate::style::Style;
 use crate::surfels::cloud::{check_neighbours, DEFAULT_NEIGHBOURS};
 use crate::surfels::volume::{voxel_count, IsoSurface, Volume, MAX_VOXELS};
@@ -34,8 +35,17 @@ struct SceneSpec {
     shutter: ShutterSpec,
     lighting: Option<LightingSpec>,
     style: Option<PathBuf>,
+    mesh_detail: Option<MeshDetailSpec>,
     #[serde(default)]
     object: Vec<ObjectSpec>,
+}
+
+/// `[mesh_detail]`: Zhang et al.'s σ₁ and σ₂ for the level of detail of moving meshes.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshDetailSpec {
+    sigma_speed: f64,
+    sigma_base: f64,
 }
 
 fn default_background() -> [f64; 3] {
@@ -534,6 +544,14 @@ fn validate(spec: SceneSpec, path: &Path, mut budget: Budget) -> Result<Scene> {
         .map_err(within(""))?
         .with_shutter(shutter)
         .with_lighting(lighting);
+    if let Some(d) = &spec.mesh_detail {
+        scene = scene
+            .with_mesh_detail(DetailRule {
+                sigma_speed: d.sigma_speed,
+                sigma_base: d.sigma_base,
+            })
+            .map_err(within("mesh_detail"))?;
+    }
     for (i, o) in spec.object.iter().enumerate() {
         let object = validate_object(o, i, path, base, budget)?;
         budget.take(object.surfels().len());

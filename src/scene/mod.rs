@@ -14,6 +14,7 @@ pub use shutter::{Shutter, ShutterShape};
 pub use triangles::TriangleMesh;
 
 use crate::error::{Error, Result};
+use crate::simplify::speed::DetailRule;
 use crate::surfels::Surfel;
 use glam::DVec3;
 use std::path::PathBuf;
@@ -367,6 +368,9 @@ pub struct Scene {
     pub objects: Vec<Object>,
     /// The style file `hint` uses unless told otherwise, resolved against the scene's folder.
     pub style: Option<PathBuf>,
+    /// How much detail a moving triangle mesh keeps for its screen speed
+    /// ([`crate::simplify::speed`]).
+    pub mesh_detail: DetailRule,
 }
 
 impl Scene {
@@ -382,7 +386,23 @@ impl Scene {
             lighting: Lighting::default(),
             objects: Vec::new(),
             style: None,
+            mesh_detail: DetailRule::default(),
         }
+    }
+
+    /// The same scene with moving meshes simplified by `rule`; an error names `sigma_speed` or
+    /// `sigma_base` when it is negative or not finite.
+    pub fn with_mesh_detail(mut self, rule: DetailRule) -> Result<Scene> {
+        for (field, v) in [
+            ("sigma_speed", rule.sigma_speed),
+            ("sigma_base", rule.sigma_base),
+        ] {
+            if !(finite(field, v)? >= 0.0) {
+                return Err(Error::invalid(field, format!("{v}: must not be negative")));
+            }
+        }
+        self.mesh_detail = rule;
+        Ok(self)
     }
 
     /// The same scene on a background of linear RGB `colour` (each component in

@@ -82,6 +82,32 @@ impl TriangleMesh {
             closed,
         })
     }
+
+    /// A mesh of `triangles` over `positions` with a colour per vertex (a simplified mesh, say):
+    /// corner normals made as [`TriangleMesh::new`] makes them, triangles without area left out.
+    /// An error names `faces` when none is left, `colours` when they are not one per vertex.
+    pub fn from_parts(
+        positions: Vec<DVec3>,
+        triangles: Vec<[u32; 3]>,
+        colours: Vec<[f32; 3]>,
+    ) -> Result<TriangleMesh> {
+        if colours.len() != positions.len() {
+            return Err(Error::invalid(
+                "colours",
+                format!("{} colours for {} vertices", colours.len(), positions.len()),
+            ));
+        }
+        let mut mesh = TriangleMesh::new(
+            &Mesh {
+                positions,
+                triangles,
+            },
+            DVec3::ZERO,
+            Colouring::Own,
+        )?;
+        mesh.colours = colours;
+        Ok(mesh)
+    }
 }
 
 /// Whether each directed edge appears once and its reverse once: a closed, consistently wound

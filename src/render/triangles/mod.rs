@@ -192,7 +192,7 @@ pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
 
 impl<'a> Prepared<'a> {
     fn new(
-        plan: &Plan<'a>,
+        plan: &'a Plan<'a>,
         camera: Camera,
         exposure: Exposure,
         shadows: Vec<ShadowMap>,
@@ -204,7 +204,7 @@ impl<'a> Prepared<'a> {
             if !plan.draws_triangles(index) {
                 continue;
             }
-            let Some(mesh) = object.mesh() else {
+            let Some(mesh) = plan.mesh_of(index) else {
                 continue;
             };
             // Per segment: the instants its corners are posed at, and the time it stands for (a

@@ -85,7 +85,7 @@ pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Camera 
 fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
     let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
     for (index, object) in scene.objects.iter().enumerate() {
-        let Some(mesh) = object.mesh().filter(|_| plan.draws_triangles(index)) else {
+        let Some(mesh) = plan.mesh_of(index).filter(|_| plan.draws_triangles(index)) else {
             continue;
         };
         let mut times = vec![

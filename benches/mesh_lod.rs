@@ -1,0 +1,196 @@
+//! Motion-aware simplification measured (issue 12; Zhang et al. 2014 Fig. 6 and 7): the
+//! armadillo translating horizontally and the bunny turning about its vertical axis, at Zhang's
+//! four screen speeds (10, 30, 90, 270 px per shutter).
+//!
+//! 1. Direction-aware against isotropic QEM at equal face counts (Zhang's Table 1 shares of the
+//!    input): ꟻLIP of the `analytic` render against the full-detail `analytic` render.
+//! 2. The plan's level of detail for each detail rule σ₁ given: faces kept, ꟻLIP against full
+//!    detail, and the speed-up of `analytic` and of `blur` (the surfel path) with the
+//!    simplification excluded and included (Zhang's Fig. 7: (T_full − T_lod) / T_lod; here as
+//!    the plain ratio T_full / T_lod).
+//!
+//! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS]`, by default `320 7.3,1,0.3
+//! 10,30,90,270`. Reads the
+//! meshes from `../shared/data/meshes/`.
+
+mod common;
+
+use std::path::Path;
+use std::time::Instant;
+
+use streak::lod::Lod;
+use streak::metrics::compare;
+use streak::scene::{Object, TriangleMesh};
+use streak::simplify::speed::ScreenMotion;
+use streak::simplify::{simplify, Options, Weighting};
+use streak::surfels::Mesh;
+use streak::{Framebuffer, Method, Plan, Scene};
+
+/// Zhang's Table 1: the bunny's faces at each of their speeds, as shares of its 69,460 (a tenth
+/// at other speeds).
+fn share(speed: f64) -> f64 {
+    [(10.0, 0.4), (30.0, 0.2), (90.0, 0.1), (270.0, 0.04)]
+        .iter()
+        .find(|(v, _)| *v == speed)
+        .map_or(0.1, |&(_, s)| s)
+}
+
+struct Case {
+    name: &'static str,
+    mesh: &'static str,
+    /// Scale making the mesh about 2 units tall.
+    scale: f64,
+    turning: bool,
+}
+
+const CASES: [Case; 2] = [
+    Case {
+        name: "armadillo translating",
+        mesh: "../shared/data/meshes/armadillo_100k.obj",
+        scale: 0.0135,
+        turning: false,
+    },
+    Case {
+        name: "bunny turning",
+        mesh: "../shared/data/meshes/bunny_bun_zipper.ply",
+        scale: 13.0,
+        turning: true,
+    },
+];
+
+/// The scene text for `case` moving `speed` px per shutter at the widest point.
+fn scene_text(case: &Case, speed: f64, width: u32, sigma: f64) -> String {
+    let height = width * 3 / 4;
+    let fov_y: f64 = 30.0;
+    let depth = 6.0;
+    let focal = 0.5 * f64::from(height) / (0.5 * fov_y.to_radians()).tan();
+    let keyframes = if case.turning {
+        // The bunny's widest point is about 1.1 units from its axis.
+        let degrees = (speed / (focal * 1.1 / depth)).to_degrees();
+        format!(
+            "[[object.keyframe]]\nt = 0\nscale = {s}\nrotate = {{ axis = [0, 1, 0], degrees = {a} }}\n[[object.keyframe]]\nt = 1\nscale = {s}\nrotate = {{ axis = [0, 1, 0], degrees = {b} }}\n",
+            s = case.scale,
+            a = -degrees / 2.0,
+            b = degrees / 2.0
+        )
+    } else {
+        let dx = speed * depth / focal;
+        format!(
+            "[[object.keyframe]]\nt = 0\nscale = {s}\ntranslate = [{a}, 0, 0]\n[[object.keyframe]]\nt = 1\nscale = {s}\ntranslate = [{b}, 0, 0]\n",
+            s = case.scale,
+            a = -dx / 2.0,
+            b = dx / 2.0
+        )
+    };
+    format!(
+        "background = [0.05, 0.05, 0.06]\n[camera]\neye = [0, 0, -{depth}]\ntarget = [0, 0, 0]\nfov_y = {fov_y}\nwidth = {width}\nheight = {height}\n[lighting]\nambient = 0.15\nlight = [{{ direction = [-0.5, 0.7, -1], intensity = 0.9 }}]\n[mesh_detail]\nsigma_speed = {sigma}\nsigma_base = 0.36\n[[object]]\nname = \"model\"\nshape = {{ type = \"mesh\", path = \"{}\", samples = 100000, draw = \"triangles\" }}\ncolour = [0.8, 0.7, 0.55]\n{keyframes}",
+        std::fs::canonicalize(case.mesh).expect("the mesh is in ../shared/data").display()
+    )
+}
+
+fn timed_render(
+    scene: &Scene,
+    method: &Method,
+    lod: Lod,
+) -> streak::Result<(Framebuffer, f64, f64)> {
+    let start = Instant::now();
+    let plan = Plan::with_lod(scene, method, lod)?;
+    let planned = start.elapsed().as_secs_f64();
+    let image = plan.render(None).image;
+    Ok((image, planned, start.elapsed().as_secs_f64() - planned))
+}
+
+fn flip(test: &Framebuffer, reference: &Framebuffer) -> f64 {
+    compare(test, reference).expect("same size").flip
+}
+
+fn main() -> streak::Result<()> {
+    let arg = common::args();
+    let width: u32 = arg(0, "320").parse().expect("SIZE is a number of pixels");
+    let sigmas: Vec<f64> = arg(1, "7.3,1,0.3")
+        .split(',')
+        .map(|s| s.parse().expect("SIGMAS are numbers"))
+        .collect();
+    let speeds: Vec<f64> = arg(2, "10,30,90,270")
+        .split(',')
+        .map(|s| s.parse().expect("SPEEDS are px per shutter"))
+        .collect();
+    println!(
+        "{} thread(s), {width} px wide",
+        rayon::current_num_threads()
+    );
+    for case in &CASES {
+        for &speed in &speeds {
+            let share = share(speed);
+            let scene = Scene::parse(
+                &scene_text(case, speed, width, sigmas[0]),
+                Path::new("bench.toml"),
+            )?;
+            let (full, _, full_time) = timed_render(&scene, &Method::ANALYTIC, Lod::Off)?;
+            let object = &scene.objects[0];
+            let mesh = object.mesh().expect("a triangle object");
+            let input = Mesh {
+                positions: mesh.positions.clone(),
+                triangles: mesh.triangles.clone(),
+            };
+            let target = (share * mesh.triangles.len() as f64) as usize;
+            let motion =
+                ScreenMotion::of(&scene.camera, object, &mesh.positions, [0.0, 1.0]).motion;
+            let mut line = format!(
+                "{} at {speed} px/shutter: full {} faces, analytic {full_time:.2} s; at {target} faces ꟻLIP vs full:",
+                case.name,
+                mesh.triangles.len()
+            );
+            for (label, weighting) in [
+                ("isotropic", Weighting::Isotropic),
+                ("direction-aware", Weighting::PerVertex(motion)),
+            ] {
+                let options = Options {
+                    target_faces: target,
+                    weighting,
+                    limits: None,
+                };
+                let simplified = simplify(&input, &options, (&[], 0), &mut |_| {})?;
+                let colours = vec![mesh.colours[0]; simplified.mesh.positions.len()];
+                let triangles = TriangleMesh::from_parts(
+                    simplified.mesh.positions,
+                    simplified.mesh.triangles,
+                    colours,
+                )?;
+                let mut variant = scene.clone();
+                variant.objects[0] = Object::triangles(
+                    "model",
+                    triangles,
+                    object.surfels().to_vec(),
+                    object.motion.clone(),
+                );
+                let (image, _, _) = timed_render(&variant, &Method::ANALYTIC, Lod::Off)?;
+                line += &format!(" {label} {:.4}", flip(&image, &full));
+            }
+            println!("{line}");
+            let (blur_full, _, blur_full_time) = timed_render(&scene, &Method::BLUR, Lod::Off)?;
+            for &sigma in &sigmas {
+                let scene = Scene::parse(
+                    &scene_text(case, speed, width, sigma),
+                    Path::new("bench.toml"),
+                )?;
+                let (image, plan_time, render_time) =
+                    timed_render(&scene, &Method::ANALYTIC, Lod::Auto)?;
+                let faces = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Auto)?
+                    .mesh_of(0)
+                    .map_or(0, |m| m.triangles.len());
+                let (blur, blur_plan, blur_render) =
+                    timed_render(&scene, &Method::BLUR, Lod::Auto)?;
+                println!(
+                    "  σ₁ = {sigma}: {faces} faces, simplify+plan {plan_time:.3} s; analytic ꟻLIP {:.4}, speed-up {:.1}× without, {:.1}× with the simplification; blur ꟻLIP {:.4}, speed-up {:.1}× (plan, cached: {blur_plan:.3} s)",
+                    flip(&image, &full),
+                    full_time / render_time,
+                    full_time / (render_time + plan_time),
+                    flip(&blur, &blur_full),
+                    blur_full_time / (blur_render + blur_plan),
+                );
+            }
+        }
+    }
+    Ok(())
+}

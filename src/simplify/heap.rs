@@ -1,0 +1,121 @@
+//! The collapse queue: a bucket queue over the cost's leading bits. Costs are binned by the top
+//! 16 bits of their f32 form (exponent and 7 bits of mantissa: bins 1/128 of an octave wide), a
+//! bin is a stack, and a bitmap finds the cheapest non-empty bin. Push and pop take constant time;
+//! within a bin, edges come out last in, first out, which is deterministic and orders costs to
+//! within 0.8 %, below what a quadric's error tells apart. The comparison heaps it replaced
+//! spent a third of the time of a simplification (a binary heap on the bunny, and still a
+//! quarter with a 4-ary heap of packed entries on the 1.6 M-face armadillo: the lazy updates
+//! leave the heap three times the edge count, and every pop missed the cache).
+
+/// An edge waiting to collapse, costed when the versions of its ends summed to `stamp`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Entry {
+    /// One end.
+    pub a: u32,
+    /// The other.
+    pub b: u32,
+    /// The summed versions of its ends when it was costed.
+    pub stamp: u32,
+}
+
+/// Bits of a cost's f32 form that pick its bin (sign, always 0, is left out).
+const BIN_SHIFT: u32 = 15;
+const BINS: usize = 1 << (31 - BIN_SHIFT);
+
+/// The bin of a cost (not negative; NaN and infinities go last).
+fn bin(cost: f64) -> usize {
+    // A non-negative f32's bits order as the number does.
+    let cost = if cost.is_finite() {
+        cost.max(0.0) as f32
+    } else {
+        f32::MAX
+    };
+    (cost.to_bits() >> BIN_SHIFT) as usize
+}
+
+/// A bucket queue of [`Entry`], cheapest bin first.
+pub struct Heap {
+    bins: Vec<Vec<Entry>>,
+    /// One bit per bin: set when it may hold entries.
+    occupied: Vec<u64>,
+    /// No word of `occupied` before this one has a bit set.
+    first: usize,
+    len: usize,
+}
+
+impl Default for Heap {
+    fn default() -> Heap {
+        Heap {
+            bins: vec![Vec::new(); BINS],
+            occupied: vec![0; BINS / 64],
+            first: 0,
+            len: 0,
+        }
+    }
+}
+
+impl Heap {
+    /// Add `entry` at `cost`.
+    pub fn push(&mut self, cost: f64, entry: Entry) {
+        let bin = bin(cost);
+        self.bins[bin].push(entry);
+        self.occupied[bin / 64] |= 1 << (bin % 64);
+        self.first = self.first.min(bin / 64);
+        self.len += 1;
+    }
+
+    /// Take an entry of the cheapest non-empty bin.
+    pub fn pop(&mut self) -> Option<Entry> {
+        if self.len == 0 {
+            return None;
+        }
+        let word = self.first + self.occupied[self.first..].iter().position(|&w| w != 0)?;
+        self.first = word;
+        let bin = word * 64 + self.occupied[word].trailing_zeros() as usize;
+        let entry = self.bins[bin].pop()?;
+        if self.bins[bin].is_empty() {
+            self.occupied[word] &= !(1 << (bin % 64));
+        }
+        self.len -= 1;
+        Some(entry)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pops_cheapest_first_and_last_in_first_within_a_bin() {
+        let mut heap = Heap::default();
+        let costs = [
+            3.0,
+            0.5,
+            7.0,
+            0.5,
+            2.0,
+            9.0,
+            0.0,
+            4.0,
+            1.0,
+            f64::NAN,
+            6.0,
+            1e-30,
+        ];
+        for (i, &c) in costs.iter().enumerate() {
+            heap.push(
+                c,
+                Entry {
+                    a: i as u32,
+                    b: 0,
+                    stamp: 0,
+                },
+            );
+        }
+        let mut popped = Vec::new();
+        while let Some(e) = heap.pop() {
+            popped.push(e.a);
+        }
+        assert_eq!(popped, [6, 11, 3, 1, 8, 4, 0, 7, 10, 2, 5, 9]);
+    }
+}

@@ -1,0 +1,238 @@
+//! Level of detail for a moving mesh from its screen speed (Zhang et al. 2014, §5 and
+//! Appendix B): a triangle whose projected perimeter is below σ₁ v + σ₂ pixels (v the screen
+//! speed in px per shutter) shows no detail the blur keeps, so each vertex gets a detail limit:
+//! that perimeter in object units. The limit is conservative over the shutter: the scale is
+//! the largest (nearest) the vertex has on screen at any sampled time, as Appendix B takes the
+//! nearest position; the speed is the length of its screen path. Each vertex also gets its
+//! screen motion, lifted back to object space (its component along the view axis dropped), to
+//! weight edge costs by their angle to the motion (§4) when the object turns.
+//!
+//! Simplified meshes are kept in a small process-wide cache keyed by the mesh and the limits
+//! (quantized to quarter octaves, downwards), so a study's repeats and a gallery's methods
+//! simplify once.
+
+use std::collections::hash_map::DefaultHasher;
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::{simplify, Limits, Options, Simplified, Weighting};
+use crate::error::Result;
+use crate::scene::camera::Camera;
+use crate::scene::{Object, TriangleMesh};
+use crate::surfels::Mesh;
+
+/// Zhang et al.'s σ₁ (eq. 8), px of perimeter per px of screen speed.
+pub const ZHANG_SIGMA_SPEED: f64 = 7.3;
+
+/// The σ₁ the plan uses unless a scene says otherwise: Zhang's 7.3, with v in px per shutter,
+/// took the armadillo to 4 faces at 30 px per shutter (ꟻLIP 0.15 against full detail); 0.3 keeps
+/// ꟻLIP at 0.031 at 90 px per shutter with a 16× faster `analytic` (docs/math.md, "Mesh level of
+/// detail"; `cargo bench --bench mesh_lod`).
+pub const DEFAULT_SIGMA_SPEED: f64 = 0.3;
+
+/// Zhang et al.'s σ₂ (eq. 8), px of perimeter at no speed.
+pub const ZHANG_SIGMA_BASE: f64 = 0.36;
+
+/// Times sampled over the shutter for each vertex's screen path.
+pub const PATH_SAMPLES: usize = 17;
+
+/// Simplified meshes kept in the cache; the oldest goes first.
+pub const CACHE_ENTRIES: usize = 8;
+
+/// Eq. 8 of Zhang et al.: the kept spatial frequency ρ = 1/(σ₁ v + σ₂), a triangle's frequency
+/// taken as the reciprocal of its projected perimeter in px.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DetailRule {
+    /// σ₁: perimeter px per px of screen speed per shutter.
+    pub sigma_speed: f64,
+    /// σ₂: perimeter px at no speed.
+    pub sigma_base: f64,
+}
+
+impl Default for DetailRule {
+    fn default() -> DetailRule {
+        DetailRule {
+            sigma_speed: DEFAULT_SIGMA_SPEED,
+            sigma_base: ZHANG_SIGMA_BASE,
+        }
+    }
+}
+
+impl DetailRule {
+    /// The largest projected perimeter, px, a triangle moving `speed_px` per shutter may have.
+    #[must_use]
+    pub fn perimeter_px(&self, speed_px: f64) -> f64 {
+        self.sigma_speed * speed_px + self.sigma_base
+    }
+}
+
+/// How each vertex of a mesh moves on screen over the shutter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScreenMotion {
+    /// Length of each vertex's screen path, px.
+    pub speed_px: Vec<f64>,
+    /// Largest px per object unit each vertex has on screen; 0 where it is ever behind the
+    /// near plane (such a vertex is never simplified).
+    pub px_per_unit: Vec<f64>,
+    /// Each vertex's screen motion at mid-shutter, in object space, view-axis part dropped.
+    pub motion: Vec<DVec3>,
+}
+
+impl ScreenMotion {
+    /// The screen motion of `positions` (object space) of `object` seen by `camera` over the
+    /// shutter `[open, close]`.
+    #[must_use]
+    pub fn of(camera: &Camera, object: &Object, positions: &[DVec3], shutter: [f64; 2]) -> Self {
+        let [open, close] = shutter;
+        let times: Vec<f64> = (0..PATH_SAMPLES)
+            .map(|i| open + (close - open) * i as f64 / (PATH_SAMPLES - 1) as f64)
+            .collect();
+        let poses: Vec<_> = times
+            .iter()
+            .map(|&t| {
+                let pose = object.motion.pose_at(t);
+                (camera.view * pose.to_affine(), pose.scale)
+            })
+            .collect();
+        let middle = 0.5 * (open + close);
+        let step = 1e-3 * (close - open);
+        let [before, after] = [middle - step, middle + step].map(|t| {
+            let pose = object.motion.pose_at(t);
+            camera.view * pose.to_affine()
+        });
+        let mid_pose = object.motion.pose_at(middle);
+        // View → object for directions: the inverse of the view rotation and the pose's
+        // rotation and scale.
+        let to_object = (camera.view.matrix3 * mid_pose.to_affine().matrix3).inverse();
+        let per_vertex: Vec<(f64, f64, DVec3)> = positions
+            .par_iter()
+            .map(|&p| {
+                let mut length = 0.0;
+                let mut scale: f64 = 0.0;
+                let mut previous: Option<glam::DVec2> = None;
+                let mut visible = true;
+                for (to_view, pose_scale) in &poses {
+                    match camera.project(to_view.transform_point3(p)) {
+                        Some((px, depth)) => {
+                            scale = scale.max(camera.focal_px * pose_scale / depth);
+                            if let Some(q) = previous {
+                                length += (px - q).length();
+                            }
+                            previous = Some(px);
+                        }
+                        None => visible = false,
+                    }
+                }
+                let velocity = after.transform_point3(p) - before.transform_point3(p);
+                let motion = to_object * DVec3::new(velocity.x, velocity.y, 0.0);
+                (
+                    length,
+                    if visible { scale } else { 0.0 },
+                    if motion.is_finite() {
+                        motion
+                    } else {
+                        DVec3::ZERO
+                    },
+                )
+            })
+            .collect();
+        ScreenMotion {
+            speed_px: per_vertex.iter().map(|v| v.0).collect(),
+            px_per_unit: per_vertex.iter().map(|v| v.1).collect(),
+            motion: per_vertex.iter().map(|v| v.2).collect(),
+        }
+    }
+
+    /// Each vertex's detail limit under `rule`, object units, quantized down to a quarter octave
+    /// (so nearby views share a cache entry and the limit never grows).
+    #[must_use]
+    pub fn limits(&self, rule: &DetailRule) -> Limits {
+        let per_vertex = self
+            .speed_px
+            .iter()
+            .zip(&self.px_per_unit)
+            .map(|(&v, &s)| {
+                let limit = rule.perimeter_px(v) / s;
+                if limit.is_finite() && limit > 0.0 {
+                    ((4.0 * limit.log2()).floor() / 4.0)
+                        .exp2()
+                        .clamp(f64::MIN_POSITIVE, f64::MAX)
+                } else {
+                    f64::MIN_POSITIVE
+                }
+            })
+            .collect();
+        Limits { per_vertex }
+    }
+}
+
+/// A simplified mesh, shared by the cache.
+pub type Shared = Arc<(TriangleMesh, Simplified)>;
+
+type Cache = Vec<(u64, Shared)>;
+static CACHE: Mutex<Cache> = Mutex::new(Vec::new());
+
+/// `mesh` simplified as far as `limits` allow with edges weighted by the per-vertex `motion`,
+/// from the cache when it holds it. Colours are carried along; corner normals are made anew.
+pub fn simplified(mesh: &TriangleMesh, limits: Limits, motion: Vec<DVec3>) -> Result<Shared> {
+    let mut hasher = DefaultHasher::new();
+    for p in &mesh.positions {
+        p.to_array().map(f64::to_bits).hash(&mut hasher);
+    }
+    mesh.triangles.hash(&mut hasher);
+    for c in &mesh.colours {
+        c.map(f32::to_bits).hash(&mut hasher);
+    }
+    for l in &limits.per_vertex {
+        l.to_bits().hash(&mut hasher);
+    }
+    for m in &motion {
+        // Only the direction's rough angle matters to the weights.
+        m.normalize_or_zero()
+            .to_array()
+            .map(|c| (c * 64.0).round() as i32)
+            .hash(&mut hasher);
+    }
+    let key = hasher.finish();
+    if let Some((_, shared)) = lock().iter().find(|(k, _)| *k == key) {
+        return Ok(Arc::clone(shared));
+    }
+    let options = Options {
+        target_faces: 0,
+        weighting: Weighting::PerVertex(motion),
+        limits: Some(limits),
+    };
+    let input = Mesh {
+        positions: mesh.positions.clone(),
+        triangles: mesh.triangles.clone(),
+    };
+    let colours: Vec<f32> = mesh.colours.iter().flatten().copied().collect();
+    let result = simplify(&input, &options, (&colours, 3), &mut |_| {})?;
+    let colours = result
+        .carried
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    let triangles = TriangleMesh::from_parts(
+        result.mesh.positions.clone(),
+        result.mesh.triangles.clone(),
+        colours,
+    )?;
+    let shared = Arc::new((triangles, result));
+    let mut cache = lock();
+    if cache.len() >= CACHE_ENTRIES {
+        cache.remove(0);
+    }
+    cache.push((key, Arc::clone(&shared)));
+    Ok(shared)
+}
+
+fn lock() -> std::sync::MutexGuard<'static, Cache> {
+    // A panic elsewhere while holding the lock leaves a cache still valid to read.
+    CACHE
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}

@@ -1,0 +1,484 @@
+//! Quadric edge-collapse simplification (`streak::simplify`): topology and geometry kept where
+//! they must be, the direction weights ordering collapses as eq. 4 of Zhang et al. 2014 says,
+//! degenerate input repaired or refused with a message, the same bytes on every run, and the
+//! plan's level of detail for moving meshes.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+use streak::lod::Lod;
+use streak::scene::{Camera, Keyframe, Motion, Object, Pose, TriangleMesh};
+use streak::simplify::{direction_weight, simplify, Options, Simplified, Weighting};
+use streak::surfels::{from_mesh, Colouring, Mesh};
+use streak::{Method, Plan, Scene};
+
+fn run(mesh: &Mesh, target_faces: usize, weighting: Weighting) -> Simplified {
+    let options = Options {
+        target_faces,
+        weighting,
+        limits: None,
+    };
+    simplify(mesh, &options, (&[], 0), &mut |_| {}).unwrap()
+}
+
+/// An icosahedron subdivided `levels` times, its vertices pushed onto the unit sphere.
+fn icosphere(levels: usize) -> Mesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut positions: Vec<DVec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
+    .collect();
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut middle: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut next = Vec::new();
+        for t in &triangles {
+            let mut m = [0u32; 3];
+            for i in 0..3 {
+                let (a, b) = (t[i], t[(i + 1) % 3]);
+                m[i] = *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                    positions.push((positions[a as usize] + positions[b as usize]).normalize());
+                    positions.len() as u32 - 1
+                });
+            }
+            next.extend([
+                [t[0], m[0], m[2]],
+                [t[1], m[1], m[0]],
+                [t[2], m[2], m[1]],
+                m,
+            ]);
+        }
+        triangles = next;
+    }
+    Mesh {
+        positions,
+        triangles,
+    }
+}
+
+/// An `n` × `n` grid of squares over the unit square in z = 0, two triangles each.
+fn grid(n: u32) -> Mesh {
+    let mut mesh = Mesh::default();
+    for j in 0..=n {
+        for i in 0..=n {
+            mesh.positions.push(DVec3::new(
+                f64::from(i) / f64::from(n),
+                f64::from(j) / f64::from(n),
+                0.0,
+            ));
+        }
+    }
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            mesh.triangles
+                .push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            mesh.triangles
+                .push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    mesh
+}
+
+/// The cube [−1, 1]³, each side an `n` × `n` grid, wound outwards, vertices shared.
+fn cube(n: u32) -> Mesh {
+    let mut mesh = Mesh::default();
+    for axis in 0..3 {
+        for side in [-1.0, 1.0] {
+            let face = grid(n);
+            let base = mesh.positions.len() as u32;
+            for p in &face.positions {
+                let (u, v) = (2.0 * p.x - 1.0, 2.0 * p.y - 1.0);
+                let mut q = [0.0; 3];
+                q[axis] = side;
+                q[(axis + 1) % 3] = u;
+                q[(axis + 2) % 3] = v;
+                mesh.positions.push(DVec3::from_array(q));
+            }
+            for t in &face.triangles {
+                let t = t.map(|v| v + base);
+                mesh.triangles
+                    .push(if side > 0.0 { t } else { [t[0], t[2], t[1]] });
+            }
+        }
+    }
+    weld(mesh)
+}
+
+/// Vertices at the same position merged (what `simplify` repairs; done here so that inputs are
+/// clean).
+fn weld(mesh: Mesh) -> Mesh {
+    let mut index: HashMap<[u64; 3], u32> = HashMap::new();
+    let mut out = Mesh::default();
+    let map: Vec<u32> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let key = p.to_array().map(|c| (c + 0.0).to_bits());
+            *index.entry(key).or_insert_with(|| {
+                out.positions.push(*p);
+                out.positions.len() as u32 - 1
+            })
+        })
+        .collect();
+    out.triangles = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| map[v as usize]))
+        .collect();
+    out
+}
+
+/// Whether every directed edge appears once and its reverse once: closed, manifold and
+/// consistently wound.
+fn closed_manifold(mesh: &Mesh) -> bool {
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in &mesh.triangles {
+        for i in 0..3 {
+            *directed.entry((t[i], t[(i + 1) % 3])).or_default() += 1;
+        }
+    }
+    directed
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && directed.get(&(b, a)) == Some(&1))
+}
+
+fn volume(mesh: &Mesh) -> f64 {
+    mesh.triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+            a.dot(b.cross(c)) / 6.0
+        })
+        .sum()
+}
+
+fn face_normal(mesh: &Mesh, t: [u32; 3]) -> DVec3 {
+    let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+    (b - a).cross(c - a)
+}
+
+#[test]
+fn a_closed_sphere_stays_closed_and_manifold_at_every_target_with_no_face_flipped() {
+    let sphere = icosphere(3);
+    let full = volume(&sphere);
+    assert!(closed_manifold(&sphere));
+    for (target, volume_tolerance) in [(640, 0.02), (200, 0.06), (50, 0.25), (12, 1.0), (4, 1.0)] {
+        let out = run(&sphere, target, Weighting::Isotropic);
+        assert!(out.reached_target, "{target}: {:?}", out.stats);
+        assert_eq!(out.mesh.triangles.len(), target);
+        assert!(
+            closed_manifold(&out.mesh),
+            "{target} faces: not closed and manifold"
+        );
+        // A convex surface: every face's normal points away from the centre.
+        for &t in &out.mesh.triangles {
+            let [a, b, c] = t.map(|v| out.mesh.positions[v as usize]);
+            assert!(
+                face_normal(&out.mesh, t).dot(a + b + c) > 0.0,
+                "{target} faces: a face flipped"
+            );
+        }
+        // Volume: the optimal placements sit near the sphere, so the polyhedron loses little
+        // until few faces are left (a regular 200-face polyhedron inscribed loses about 4 %).
+        let change = (volume(&out.mesh) - full).abs() / full;
+        assert!(
+            change <= volume_tolerance,
+            "{target} faces: volume changed by {change}"
+        );
+    }
+}
+
+#[test]
+fn a_flat_grid_collapses_to_two_triangles_on_its_corners() {
+    let out = run(&grid(8), 2, Weighting::Isotropic);
+    assert_eq!(out.mesh.triangles.len(), 2);
+    let mut corners: Vec<[i64; 3]> = out
+        .mesh
+        .positions
+        .iter()
+        .map(|p| (*p * 1e9).round().as_i64vec3().to_array())
+        .collect();
+    corners.sort_unstable();
+    assert_eq!(
+        corners,
+        [
+            [0, 0, 0],
+            [0, 1_000_000_000, 0],
+            [1_000_000_000, 0, 0],
+            [1_000_000_000, 1_000_000_000, 0]
+        ]
+    );
+}
+
+#[test]
+fn a_cube_keeps_its_corners() {
+    let out = run(&cube(4), 12, Weighting::Isotropic);
+    assert_eq!(out.mesh.triangles.len(), 12);
+    assert!(closed_manifold(&out.mesh));
+    assert_eq!(out.mesh.positions.len(), 8);
+    for p in &out.mesh.positions {
+        assert!(
+            (p.abs() - DVec3::ONE).abs().max_element() < 1e-9,
+            "{p} is not a corner of the cube"
+        );
+    }
+}
+
+#[test]
+fn direction_weights_follow_eq_4_and_order_the_collapses() {
+    // f(α) = 1 − (1 − cos α)^4 + 0.5: across the motion ε, along it 1 + ε, falling in between.
+    assert_eq!(direction_weight(0.0), 0.5);
+    assert_eq!(direction_weight(1.0), 1.5);
+    let mut previous = direction_weight(1.0);
+    for i in 1..=90 {
+        let f = direction_weight(f64::from(i).to_radians().cos());
+        assert!(f < previous, "not falling at {i}°");
+        previous = f;
+    }
+    // The weights order the collapses: on a sphere moving along x, edges across the motion
+    // weigh ε and collapse first. Each such collapse thins the vertices across the motion, so
+    // the triangles left stretch across it and their edges lean away from the motion.
+    let sphere = icosphere(3);
+    let lean = |mesh: &Mesh| {
+        let mut along = 0.0;
+        let mut all = 0.0;
+        for t in &mesh.triangles {
+            for i in 0..3 {
+                let e = mesh.positions[t[(i + 1) % 3] as usize] - mesh.positions[t[i] as usize];
+                along += e.normalize().x.abs();
+                all += 1.0;
+            }
+        }
+        along / all
+    };
+    let isotropic = lean(&run(&sphere, 300, Weighting::Isotropic).mesh);
+    let aware = lean(&run(&sphere, 300, Weighting::Direction(DVec3::X)).mesh);
+    assert!(
+        aware < isotropic - 0.03,
+        "mean |cos α| of the edges left: direction-aware {aware}, isotropic {isotropic}"
+    );
+}
+
+#[test]
+fn degenerate_input_is_repaired_and_counted_or_refused_by_name() {
+    // A cube written with its sides apart (24 vertices, as exporters split normals), plus a
+    // face with a repeated corner, a repeated face, an isolated vertex, and a fin making one
+    // edge non-manifold.
+    let mut mesh = Mesh::default();
+    let sides = cube(1);
+    for t in &sides.triangles {
+        let base = mesh.positions.len() as u32;
+        mesh.positions
+            .extend(t.map(|v| sides.positions[v as usize]));
+        mesh.triangles.push([base, base + 1, base + 2]);
+    }
+    mesh.triangles.push([0, 0, 1]);
+    mesh.triangles.push(mesh.triangles[3]);
+    mesh.positions.push(DVec3::splat(7.0));
+    let fin = mesh.positions.len() as u32;
+    mesh.positions.push(DVec3::new(3.0, 3.0, 3.0));
+    let [a, b, _] = mesh.triangles[0];
+    mesh.triangles.push([a, b, fin]);
+    let out = run(&mesh, 1, Weighting::Isotropic);
+    let r = out.repairs;
+    assert_eq!(r.welded, 36 - 8, "{r:?}");
+    assert_eq!(
+        (r.repeated_corners, r.duplicate_faces, r.isolated),
+        (1, 1, 1),
+        "{r:?}"
+    );
+    assert_eq!(r.non_manifold_edges, 1, "{r:?}");
+    assert!(out.mesh.positions.iter().all(|p| p.is_finite()));
+    assert!(out.mesh.triangles.len() >= 2);
+
+    let mut bad = icosphere(0);
+    bad.positions[3].y = f64::NAN;
+    let e = simplify(&bad, &Options::default(), (&[], 0), &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("vertex 3"), "{e}");
+    let mut bad = icosphere(0);
+    bad.triangles[5][1] = 99;
+    let e = simplify(&bad, &Options::default(), (&[], 0), &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("face 5"), "{e}");
+    // Zero-area faces (three corners on a line) are kept until their edges collapse, first.
+    let mut sliver = grid(2);
+    sliver.positions.push(DVec3::new(0.5, 0.0, 0.0));
+    sliver.triangles.push([0, 1, 2]);
+    let out = run(&sliver, 2, Weighting::Isotropic);
+    assert!(out.mesh.positions.iter().all(|p| p.is_finite()));
+}
+
+#[test]
+fn the_same_mesh_and_settings_give_the_same_bytes_whatever_the_thread_count() {
+    let sphere = icosphere(4);
+    let simplified = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                run(
+                    &sphere,
+                    700,
+                    Weighting::Direction(DVec3::new(1.0, 0.3, 0.0)),
+                )
+            })
+    };
+    let bytes = |s: &Simplified| {
+        let mut out = Vec::new();
+        for p in &s.mesh.positions {
+            for c in p.to_array() {
+                out.extend(c.to_le_bytes());
+            }
+        }
+        for t in &s.mesh.triangles {
+            for v in t {
+                out.extend(v.to_le_bytes());
+            }
+        }
+        out
+    };
+    let one = bytes(&simplified(1));
+    assert_eq!(one, bytes(&simplified(2)));
+    assert_eq!(one, bytes(&simplified(3)));
+}
+
+#[test]
+fn carried_colours_are_interpolated_within_their_range() {
+    let sphere = icosphere(3);
+    let colours: Vec<f32> = sphere
+        .positions
+        .iter()
+        .flat_map(|p| [(0.5 + 0.5 * p.x) as f32, 0.25, (0.5 + 0.5 * p.z) as f32])
+        .collect();
+    let options = Options {
+        target_faces: 100,
+        ..Options::default()
+    };
+    let out = simplify(&sphere, &options, (&colours, 3), &mut |_| {}).unwrap();
+    assert_eq!(out.carried.len(), out.mesh.positions.len() * 3);
+    for (p, c) in out.mesh.positions.iter().zip(out.carried.chunks_exact(3)) {
+        assert!((0.0..=1.0).contains(&c[0]) && c[1] == 0.25);
+        // The colour still follows the position it was made from, to within a coarse facet.
+        assert!(
+            (f64::from(c[0]) - (0.5 + 0.5 * p.normalize().x)).abs() < 0.15,
+            "{p} {c:?}"
+        );
+    }
+}
+
+/// A scene looking at the icosphere from z = 6, the sphere moving `dx` along x over the shutter.
+fn moving_sphere(dx: f64) -> Scene {
+    let mesh = icosphere(4);
+    let camera = Camera::new(
+        DVec3::new(0.0, 0.0, 6.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        30.0,
+        160,
+        120,
+    )
+    .unwrap();
+    let triangles = TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Rgb([0.8, 0.6, 0.4])).unwrap();
+    let mut surfels = from_mesh(&mesh, 4000, false).unwrap();
+    Colouring::Rgb([0.8, 0.6, 0.4]).apply(&mut surfels);
+    let at = |x: f64| Pose {
+        translation: DVec3::new(x, 0.0, 0.0),
+        ..Pose::IDENTITY
+    };
+    let motion = Motion::new(vec![
+        Keyframe {
+            t: 0.0,
+            pose: at(-dx / 2.0),
+        },
+        Keyframe {
+            t: 1.0,
+            pose: at(dx / 2.0),
+        },
+    ])
+    .unwrap();
+    Scene::new(camera).with_object(Object::triangles("sphere", triangles, surfels, motion))
+}
+
+#[test]
+fn the_plan_simplifies_moving_meshes_by_their_speed_and_leaves_still_ones_alone() {
+    let faces = |scene: &Scene, method: &Method, lod: Lod| {
+        let plan = Plan::with_lod(scene, method, lod).unwrap();
+        (plan.mesh_of(0).unwrap().triangles.len(), plan.explain(None))
+    };
+    let full = 20 * 4usize.pow(4);
+    let (still, explain) = faces(&moving_sphere(0.0), &Method::ANALYTIC, Lod::Auto);
+    assert_eq!(still, full);
+    assert!(explain.contains("faces kept: still"), "{explain}");
+    let fast = moving_sphere(3.0);
+    assert_eq!(faces(&fast, &Method::ANALYTIC, Lod::Off).0, full);
+    assert_eq!(faces(&fast, &Method::STATIC, Lod::Auto).0, full);
+    let (simplified, explain) = faces(&fast, &Method::ANALYTIC, Lod::Auto);
+    assert!(simplified < full / 4, "{explain}");
+    assert!(
+        explain.contains(&format!("{full} faces → {simplified}")),
+        "{explain}"
+    );
+    // Slower, less simplified.
+    let (slower, _) = faces(&moving_sphere(1.2), &Method::ANALYTIC, Lod::Auto);
+    assert!(
+        simplified < slower && slower < full,
+        "{simplified} {slower}"
+    );
+    // The render with the simplified mesh is finite and close to full detail's.
+    let lod = Plan::with_lod(&fast, &Method::ANALYTIC, Lod::Auto)
+        .unwrap()
+        .render(None)
+        .image;
+    let off = Plan::with_lod(&fast, &Method::ANALYTIC, Lod::Off)
+        .unwrap()
+        .render(None)
+        .image;
+    let flip_free_rmse = lod
+        .pixels
+        .iter()
+        .zip(&off.pixels)
+        .map(|(a, b)| (0..3).map(|c| f64::from(a[c] - b[c]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / (3 * lod.pixels.len()) as f64;
+    assert!(lod.pixels.iter().flatten().all(|v| v.is_finite()));
+    assert!(
+        flip_free_rmse.sqrt() < 0.03,
+        "RMSE {}",
+        flip_free_rmse.sqrt()
+    );
+}
