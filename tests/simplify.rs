@@ -3,6 +3,8 @@
 //! degenerate input repaired or refused with a message, the same bytes on every run, and the
 //! plan's level of detail for moving meshes.
 
+mod common;
+
 use std::collections::HashMap;
 
 use glam::DVec3;
@@ -21,72 +23,12 @@ fn run(mesh: &Mesh, target_faces: usize, weighting: Weighting) -> Simplified {
     simplify(mesh, &options, (&[], 0), &mut |_| {}).unwrap()
 }
 
-/// An icosahedron subdivided `levels` times, its vertices pushed onto the unit sphere.
+/// The shared icosphere (`common::icosphere`) as a mesh.
 fn icosphere(levels: usize) -> Mesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut positions: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut triangles: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut middle: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut next = Vec::new();
-        for t in &triangles {
-            let mut m = [0u32; 3];
-            for i in 0..3 {
-                let (a, b) = (t[i], t[(i + 1) % 3]);
-                m[i] = *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                    positions.push((positions[a as usize] + positions[b as usize]).normalize());
-                    positions.len() as u32 - 1
-                });
-            }
-            next.extend([
-                [t[0], m[0], m[2]],
-                [t[1], m[1], m[0]],
-                [t[2], m[2], m[1]],
-                m,
-            ]);
-        }
-        triangles = next;
-    }
+    let (positions, triangles) = common::icosphere(levels);
     Mesh {
         positions,
-        triangles,
+        triangles: triangles.iter().map(|t| t.map(|v| v as u32)).collect(),
     }
 }
 
