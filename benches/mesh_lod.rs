@@ -88,16 +88,24 @@ fn scene_text(case: &Case, speed: f64, width: u32, sigma: f64) -> String {
     )
 }
 
+/// The image, the plan's time (with any simplification), the render's time, and the faces the
+/// first object was drawn with.
 fn timed_render(
     scene: &Scene,
     method: &Method,
     lod: Lod,
-) -> streak::Result<(Framebuffer, f64, f64)> {
+) -> streak::Result<(Framebuffer, f64, f64, usize)> {
     let start = Instant::now();
     let plan = Plan::with_lod(scene, method, lod)?;
     let planned = start.elapsed().as_secs_f64();
     let image = plan.render(None).image;
-    Ok((image, planned, start.elapsed().as_secs_f64() - planned))
+    let faces = plan.mesh_of(0).map_or(0, |m| m.triangles.len());
+    Ok((
+        image,
+        planned,
+        start.elapsed().as_secs_f64() - planned,
+        faces,
+    ))
 }
 
 fn flip(test: &Framebuffer, reference: &Framebuffer) -> f64 {
@@ -126,7 +134,7 @@ fn main() -> streak::Result<()> {
                 &scene_text(case, speed, width, sigmas[0]),
                 Path::new("bench.toml"),
             )?;
-            let (full, _, full_time) = timed_render(&scene, &Method::ANALYTIC, Lod::Off)?;
+            let (full, _, full_time, _) = timed_render(&scene, &Method::ANALYTIC, Lod::Off)?;
             let object = &scene.objects[0];
             let mesh = object.mesh().expect("a triangle object");
             let input = Mesh {
@@ -164,22 +172,19 @@ fn main() -> streak::Result<()> {
                     object.surfels().to_vec(),
                     object.motion.clone(),
                 );
-                let (image, _, _) = timed_render(&variant, &Method::ANALYTIC, Lod::Off)?;
+                let (image, ..) = timed_render(&variant, &Method::ANALYTIC, Lod::Off)?;
                 line += &format!(" {label} {:.4}", flip(&image, &full));
             }
             println!("{line}");
-            let (blur_full, _, blur_full_time) = timed_render(&scene, &Method::BLUR, Lod::Off)?;
+            let (blur_full, _, blur_full_time, _) = timed_render(&scene, &Method::BLUR, Lod::Off)?;
             for &sigma in &sigmas {
                 let scene = Scene::parse(
                     &scene_text(case, speed, width, sigma),
                     Path::new("bench.toml"),
                 )?;
-                let (image, plan_time, render_time) =
+                let (image, plan_time, render_time, faces) =
                     timed_render(&scene, &Method::ANALYTIC, Lod::Auto)?;
-                let faces = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Auto)?
-                    .mesh_of(0)
-                    .map_or(0, |m| m.triangles.len());
-                let (blur, blur_plan, blur_render) =
+                let (blur, blur_plan, blur_render, _) =
                     timed_render(&scene, &Method::BLUR, Lod::Auto)?;
                 println!(
                     "  σ₁ = {sigma}: {faces} faces, simplify+plan {plan_time:.3} s; analytic ꟻLIP {:.4}, speed-up {:.1}× without, {:.1}× with the simplification; blur ꟻLIP {:.4}, speed-up {:.1}× (plan, cached: {blur_plan:.3} s)",

@@ -7,7 +7,9 @@
 //! `cargo bench --bench simplify -- MESH FACES [SUBDIVISIONS] [REPEATS] [OTHER] [WRITE_INPUT]`,
 //! by default `../shared/data/meshes/bunny_bun_zipper.ply 27789 0 5`. `SUBDIVISIONS` Loop steps
 //! make the 1.6 M-face armadillo from the 100 k one (generated here, not stored); `WRITE_INPUT`
-//! writes the subdivided input for the other tool. `-` skips an optional argument.
+//! writes the subdivided input for the other tool. `-` skips an optional argument. MeshLab's
+//! simplification of the same input comes from `python3 benches/meshlab.py INPUT FACES OUT.ply`
+//! (needs `pip install pymeshlab`); pass `OUT.ply` as `OTHER`.
 
 mod common;
 

@@ -103,7 +103,7 @@ pub struct ObjectPlan {
 }
 
 /// What the plan did to an object's triangle mesh.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum MeshLod {
     /// Not a triangle mesh.
     NoMesh,
@@ -118,19 +118,6 @@ pub enum MeshLod {
         /// Surfels resampled from the simplified mesh for the splat methods, if they were.
         surfels: Option<Vec<Surfel>>,
     },
-}
-
-impl PartialEq for MeshLod {
-    fn eq(&self, other: &Self) -> bool {
-        match (self, other) {
-            (MeshLod::NoMesh, MeshLod::NoMesh) => true,
-            (MeshLod::Full(a), MeshLod::Full(b)) => a == b,
-            (MeshLod::Simplified { mesh: a, .. }, MeshLod::Simplified { mesh: b, .. }) => {
-                std::sync::Arc::ptr_eq(a, b)
-            }
-            _ => false,
-        }
-    }
 }
 
 impl MeshLod {
@@ -236,20 +223,21 @@ impl<'a> Plan<'a> {
                     ObjectMotion::Still
                 };
                 let mesh_lod = mesh_lod(scene, object, moves, method, lod)?;
-                let surfels = match &mesh_lod {
+                let resampled = match &mesh_lod {
                     MeshLod::Simplified {
                         surfels: Some(s), ..
-                    } => s.as_slice(),
-                    _ => object.surfels(),
+                    } => Some(s.as_slice()),
+                    _ => None,
                 };
+                let surfels = resampled.unwrap_or(object.surfels());
                 let kernels = matches!(method, Method::Kernel3d { .. });
                 let mut lod = match lod.blurred_cells(kernels) {
                     _ if draws_triangles(method, object) => ObjectLod::OFF,
                     None => ObjectLod::OFF,
                     Some(cells) => object_lod(scene, object, surfels, &motion, method, cells),
                 };
-                if lod.merged.is_none() && surfels.len() != object.surfels().len() {
-                    lod.merged = Some(surfels.to_vec());
+                if let (None, Some(resampled)) = (&lod.merged, resampled) {
+                    lod.merged = Some(resampled.to_vec());
                 }
                 Ok(ObjectPlan {
                     name: object.name.clone(),

@@ -40,7 +40,6 @@ pub struct Heap {
     occupied: Vec<u64>,
     /// No word of `occupied` before this one has a bit set.
     first: usize,
-    len: usize,
 }
 
 impl Default for Heap {
@@ -49,7 +48,6 @@ impl Default for Heap {
             bins: vec![Vec::new(); BINS],
             occupied: vec![0; BINS / 64],
             first: 0,
-            len: 0,
         }
     }
 }
@@ -61,14 +59,10 @@ impl Heap {
         self.bins[bin].push(entry);
         self.occupied[bin / 64] |= 1 << (bin % 64);
         self.first = self.first.min(bin / 64);
-        self.len += 1;
     }
 
     /// Take an entry of the cheapest non-empty bin.
     pub fn pop(&mut self) -> Option<Entry> {
-        if self.len == 0 {
-            return None;
-        }
         let word = self.first + self.occupied[self.first..].iter().position(|&w| w != 0)?;
         self.first = word;
         let bin = word * 64 + self.occupied[word].trailing_zeros() as usize;
@@ -76,7 +70,6 @@ impl Heap {
         if self.bins[bin].is_empty() {
             self.occupied[word] &= !(1 << (bin % 64));
         }
-        self.len -= 1;
         Some(entry)
     }
 }
