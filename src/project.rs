@@ -242,13 +242,16 @@ impl Culled {
 const SURFEL_CHUNK: usize = 1024;
 
 /// Run `make` for surfels 0..`count` in parallel, each keeping footprints or counting why not,
-/// and gather the results in surfel order (so the list does not depend on the thread count).
-/// Collecting per chunk of surfels keeps only what survives: with hundreds of sub-segments per
-/// surfel, most of them off screen, collecting every result first would cost gigabytes.
+/// and append the results to `out` in surfel order (so the list does not depend on the thread
+/// count); returns what was left out. Collecting per chunk of surfels keeps only what survives:
+/// with hundreds of sub-segments per surfel, most of them off screen, collecting every result
+/// first would cost gigabytes. The chunks go straight into `out`: a joined list in between would
+/// copy every footprint once more and fault in its pages anew.
 pub fn per_surfel(
     count: usize,
+    out: &mut Vec<Footprint>,
     make: impl Fn(usize, &mut Vec<Footprint>, &mut Culled) + Sync,
-) -> (Vec<Footprint>, Culled) {
+) -> Culled {
     let parts: Vec<(Vec<Footprint>, Culled)> = (0..count.div_ceil(SURFEL_CHUNK))
         .into_par_iter()
         .map(|chunk| {
@@ -259,13 +262,13 @@ pub fn per_surfel(
             (kept, culled)
         })
         .collect();
-    let mut footprints = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
+    out.reserve(parts.iter().map(|p| p.0.len()).sum());
     let mut culled = Culled::default();
     for (kept, c) in parts {
-        footprints.extend(kept);
+        out.extend(kept);
         culled.add(&c);
     }
-    (footprints, culled)
+    culled
 }
 
 /// The footprint of a surfel view drawn sharp (the static EWA splat).
@@ -294,7 +297,7 @@ pub fn object_footprints_at(
     culled: &mut Culled,
 ) {
     let instant = Instant::new(camera, &object.motion.pose_at(t));
-    let (kept, tally) = per_surfel(surfels.len(), |i, kept, culled| {
+    let tally = per_surfel(surfels.len(), footprints, |i, kept, culled| {
         let surfel = &surfels[i];
         let result = match Located::new(camera, &instant, surfel) {
             None => Err(Cull::BehindNear),
@@ -305,7 +308,6 @@ pub fn object_footprints_at(
         };
         culled.keep(result, kept);
     });
-    footprints.extend(kept);
     culled.add(&tally);
 }
 

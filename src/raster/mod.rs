@@ -412,10 +412,10 @@ impl Layer {
     }
 
     /// colour + transmittance × what lies behind pixel i.
-    fn composite(&self, behind: impl Fn(usize) -> [f32; 3]) -> Framebuffer {
+    fn composite(&self, behind: impl Fn(usize) -> [f32; 3] + Sync) -> Framebuffer {
         let pixels = self
             .colour
-            .iter()
+            .par_iter()
             .zip(&self.transmittance)
             .enumerate()
             .map(|(i, (c, &t))| {
@@ -486,7 +486,16 @@ pub fn rasterize<const B: usize>(
     });
 
     // Each task renders one row of tiles into its band of the layer, reusing one scratch buffer.
-    let mut layer = Layer::clear(width, height);
+    // Every pixel is written there, so the layer starts as zeroed memory, whose pages are faulted
+    // in by the tasks that first write them rather than filled serially here.
+    let size = width as usize * height as usize;
+    let mut layer = Layer {
+        width,
+        height,
+        colour: vec![[0.0; 3]; size],
+        transmittance: vec![0.0; size],
+        front_depth: vec![0.0; size],
+    };
     let band = width as usize * TILE_PX as usize;
     (layer.colour.par_chunks_mut(band))
         .zip(layer.transmittance.par_chunks_mut(band))

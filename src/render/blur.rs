@@ -51,7 +51,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             .iter()
             .map(|&[t0, t1]| scene.shutter.moments(t0, t1))
             .collect();
-        let (kept, culled) = per_surfel(surfels.len(), |i, kept, culled| {
+        let culled = per_surfel(surfels.len(), &mut footprints, |i, kept, culled| {
             let surfel = &surfels[i];
             let views: Vec<Option<SurfelView>> = instants
                 .iter()
@@ -71,7 +71,6 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
                 culled.keep(result, kept);
             }
         });
-        footprints.extend(kept);
         stats.culled.add(&culled);
     }
     // Coverage is composited per bin of shutter time only when something moves; a still scene is

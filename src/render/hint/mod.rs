@@ -199,17 +199,18 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 window,
                 fastest_px: fastest,
             };
-            let (footprints, culled) = object_trails(
+            let before = trail_footprints.len();
+            let culled = object_trails(
                 &context,
                 (object, trail_surfels),
                 segments,
                 &copies,
                 max_piece,
                 trail_emits,
+                &mut trail_footprints,
             );
-            hint.trail_splats += footprints.len();
+            hint.trail_splats += trail_footprints.len() - before;
             hint.trail_culled.add(&culled);
-            trail_footprints.extend(footprints);
         }
         if style.speed_lines.draw && line_window[1] > line_window[0] {
             starts.extend(line_starts(
@@ -435,7 +436,7 @@ fn emitters(
 }
 
 /// The trail splats over its copy windows of `surfels` moving with `object` (its own, or merged by
-/// the level of detail), and what was left out.
+/// the level of detail), appended to `out`; returns what was left out.
 fn object_trails(
     context: &TrailContext,
     (object, surfels): (&Object, &[Surfel]),
@@ -443,7 +444,8 @@ fn object_trails(
     copies: &[Window],
     max_piece: f64,
     emits: &[bool],
-) -> (Vec<Footprint>, Culled) {
+    out: &mut Vec<Footprint>,
+) -> Culled {
     let scene = context.scene;
     let camera = &scene.camera;
     let area_scale = context.style.trail.width * context.style.trail.width;
@@ -474,7 +476,7 @@ fn object_trails(
         .iter()
         .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
         .collect();
-    per_surfel(surfels.len(), |i, kept, culled| {
+    per_surfel(surfels.len(), out, |i, kept, culled| {
         if !emits[i] {
             return;
         }
