@@ -13,7 +13,7 @@
 //! never merge. Merging is done in object space, so every renderer draws the merged surfels as it
 //! draws any others.
 //!
-//! The grid is rotated to one of [`DIRECTION_BUCKETS`] directions nearest each surfel's screen
+//! The grid is rotated to one of `DIRECTION_BUCKETS` directions nearest each surfel's screen
 //! motion, and its length quantized to quarter octaves of the path, so that neighbours moving
 //! alike fall into the same cells.
 

@@ -28,6 +28,7 @@ pub use crate::raster::{
     opacity, CUTOFF_SIGMAS, OPACITY_KNEE, OPAQUE_COVERAGE, PREFILTER_VARIANCE_PX2, TILE_PX,
     TRUNCATION_GAIN,
 };
+pub use abuffer::MAX_FRAGMENTS_PER_PIXEL;
 pub(crate) use hint::trail_window;
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS};

@@ -1,6 +1,6 @@
 //! The edge-collapse loop (Garland & Heckbert 1997, §3–4): every edge gets the cost of moving its
 //! two ends to the point its summed quadric likes best, the cheapest edge is collapsed, and the
-//! edges around the merged vertex are costed again. The heap ([`super::heap`]) is lazy: an entry
+//! edges around the merged vertex are costed again. The heap (`super::heap`) is lazy: an entry
 //! carries the summed versions of its two vertices (which only grow) and is dropped when popped
 //! stale.
 //!

@@ -21,7 +21,8 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::project::{Cull, Culled, Instant};
 use crate::raster::{Rejection, TileGrid, TileLists, TILE_PX};
 use crate::render::abuffer::{
-    resolve_approximate, resolve_exact, Fragment, Resolved, SWEEP_WORK_PER_PIXEL,
+    compact, resolve_approximate, resolve_exact, Compaction, Fragment, Resolved, TimeBins,
+    MAX_FRAGMENTS_PER_PIXEL, TABLE_PARTS,
 };
 use crate::scene::{Object, Scene};
 use crate::surfels::Surfel;
@@ -68,16 +69,21 @@ pub struct KernelStats {
     pub peak_kernels: usize,
     /// Kernels made, over all sub-frames.
     pub kernels: usize,
-    /// Fragments resolved, over all sub-frames.
+    /// Fragments made, over all sub-frames.
     pub fragments: usize,
-    /// The most fragments on one pixel in one sub-frame.
+    /// Fragments resolved: those made, less those merged away.
+    pub resolved_fragments: usize,
+    /// The most fragments one pixel held (at most [`MAX_FRAGMENTS_PER_PIXEL`]).
     pub peak_fragments_per_pixel: usize,
     /// The most fragments held at once by one worker: one tile row's (the A-buffer's working
     /// memory, per thread).
     pub peak_fragments_held: usize,
-    /// Pixels whose A-buffer sweep was cut into fewer time pieces than usual to bound its work
-    /// (more fragments than [`SWEEP_WORK_PER_PIXEL`] allows at full resolution).
-    pub coarse_pixels: usize,
+    /// Pixels that reached [`MAX_FRAGMENTS_PER_PIXEL`] and had their fragments merged, one per
+    /// surface and sub-frame (counted once per pass).
+    pub merged_pixels: usize,
+    /// Of those, pixels with so many surfaces that ones farther apart than their depth tolerance
+    /// were merged too (their depth order within a sub-frame lost).
+    pub widened_pixels: usize,
 }
 
 impl KernelStats {
@@ -90,22 +96,31 @@ impl KernelStats {
             ),
             None => String::new(),
         };
-        let coarse = if self.coarse_pixels > 0 {
+        let merged = if self.merged_pixels > 0 {
             format!(
-                "  {} pixel(s) had so many fragments that their visibility was resolved over fewer time pieces (work per pixel at most {SWEEP_WORK_PER_PIXEL} fragment steps)\n",
-                self.coarse_pixels
+                "  {} pixel(s) reached {MAX_FRAGMENTS_PER_PIXEL} fragments: each surface's fragments of one sub-frame merged into one, with its coverage in {TABLE_PARTS} parts of its time\n",
+                self.merged_pixels
+            )
+        } else {
+            String::new()
+        };
+        let widened = if self.widened_pixels > 0 {
+            format!(
+                "  {} of them had more surfaces than that leaves room for: surfaces beyond the depth tolerance merged too, their order within a sub-frame lost\n",
+                self.widened_pixels
             )
         } else {
             String::new()
         };
         format!(
-            "kernel3d: {} sub-frame(s) in {} pass(es) of at most {} kernels (held at once: {}), {} kernels, {} fragments; peak {} fragments on one pixel, {} held at once by a worker (one tile row, {} KiB)\n{capped}{coarse}",
+            "kernel3d: {} sub-frame(s) in {} pass(es) of at most {} kernels (held at once: {}), {} kernels, {} fragments ({} resolved); peak {} fragments on one pixel, {} held at once by a worker (one tile row, {} KiB)\n{capped}{merged}{widened}",
             self.subframes,
             self.passes,
             MAX_KERNELS_PER_PASS,
             self.peak_kernels,
             self.kernels,
             self.fragments,
+            self.resolved_fragments,
             self.peak_fragments_per_pixel,
             self.peak_fragments_held,
             self.peak_fragments_held * std::mem::size_of::<Fragment>() / 1024
@@ -246,10 +261,12 @@ pub(super) fn render(
         let mut blocks = Vec::with_capacity(results.len());
         for tile in results {
             kernel3d.fragments += tile.fragments;
+            kernel3d.resolved_fragments += tile.resolved_fragments;
             kernel3d.peak_fragments_per_pixel =
                 kernel3d.peak_fragments_per_pixel.max(tile.peak_pixel);
             kernel3d.peak_fragments_held = kernel3d.peak_fragments_held.max(tile.peak_held);
-            kernel3d.coarse_pixels += tile.coarse;
+            kernel3d.merged_pixels += tile.merged;
+            kernel3d.widened_pixels += tile.widened;
             blocks.push(tile.resolved);
         }
         grid.scatter(&blocks, sums.par_chunks_mut(width as usize), |row, x, r| {
@@ -438,8 +455,10 @@ struct TileWork<'a> {
 
 /// The fragments of the tile over pixels [x0, x1) × [y0, y1) resolved per pixel, the number of
 /// fragments in the tile, the most on one pixel, and the most held at once. Fragments are made
-/// and resolved one row of the tile at a time, so a worker holds at most one row's: a row of
-/// [`TILE_PX`] pixels times the kernels reaching it.
+/// and resolved one row of the tile at a time, so a worker holds at most one row's: [`TILE_PX`]
+/// pixels of at most [`MAX_FRAGMENTS_PER_PIXEL`] each (a pixel that reaches it has its fragments
+/// merged by surface and sub-frame, [`compact`]). Fragments are clipped to the pass's `exposure`:
+/// a still object's span the whole exposure, which may be drawn in several passes.
 fn resolve_tile(
     scene: &Scene,
     work: &TileWork,
@@ -472,7 +491,9 @@ fn resolve_tile(
         resolved: Vec::with_capacity(w * (y1 - y0) as usize),
         ..TileResult::default()
     };
-    let mut fragments: Vec<Vec<Fragment>> = vec![Vec::new(); w];
+    let bins = TimeBins::new(windows);
+    // Per pixel of a row: its fragments, and how they were merged if they reached the cap.
+    let mut pixels: Vec<(Vec<Fragment>, Option<Compaction>)> = vec![(Vec::new(), None); w];
     for y in y0..y1 {
         for (kernel, [bx0, by0, bx1, by1]) in &prepared {
             if !(*by0..*by1).contains(&y) {
@@ -480,22 +501,31 @@ fn resolve_tile(
             }
             for x in x0.max(*bx0)..x1.min(*bx1) {
                 let pixel = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                if let Some(f) = kernel.fragment(ray(x, y), pixel, camera.near) {
-                    fragments[(x - x0) as usize].push(f);
+                let Some(mut f) = kernel.fragment(ray(x, y), pixel, camera.near) else {
+                    continue;
+                };
+                if !f.clip_to(exposure) {
+                    continue;
+                }
+                out.fragments += 1;
+                let (list, merged) = &mut pixels[(x - x0) as usize];
+                list.push(f);
+                if list.len() == MAX_FRAGMENTS_PER_PIXEL {
+                    out.peak_pixel = MAX_FRAGMENTS_PER_PIXEL;
+                    *merged = (*merged).max(Some(compact(list, &bins)));
                 }
             }
         }
-        let held: usize = fragments.iter().map(Vec::len).sum();
-        out.fragments += held;
+        let held: usize = pixels.iter().map(|(list, _)| list.len()).sum();
+        out.resolved_fragments += held;
         out.peak_held = out.peak_held.max(held);
-        for (i, list) in fragments.iter_mut().enumerate() {
+        for (i, (list, merged)) in pixels.iter_mut().enumerate() {
+            out.merged += usize::from(merged.is_some());
+            out.widened += usize::from(*merged == Some(Compaction::Widened));
+            *merged = None;
             out.peak_pixel = out.peak_pixel.max(list.len());
             out.resolved.push(match visible_depth {
-                None => {
-                    let r = resolve_exact(list, exposure);
-                    out.coarse += usize::from(r.coarse);
-                    r
-                }
+                None => resolve_exact(list, exposure),
                 Some(depths) => {
                     let p = y as usize * camera.width as usize + x0 as usize + i;
                     // §5.5: the passes run per sub-frame and add up, weighted by the shutter.
@@ -522,12 +552,14 @@ fn resolve_tile(
 struct TileResult {
     /// The tile's pixels, row by row.
     resolved: Vec<Resolved>,
-    /// Fragments made.
+    /// Fragments made, and resolved (after merging).
     fragments: usize,
+    resolved_fragments: usize,
     /// The most fragments on one pixel.
     peak_pixel: usize,
     /// The most fragments held at once (one row's).
     peak_held: usize,
-    /// Pixels resolved over fewer pieces to bound their work.
-    coarse: usize,
+    /// Pixels whose fragments were merged, and of those, with the depth tolerance widened.
+    merged: usize,
+    widened: usize,
 }
