@@ -82,17 +82,6 @@ impl Fragment {
         (m1 > m0).then(|| (self.cumulative(m1) - self.cumulative(m0), [m0, m1]))
     }
 
-    /// Cut the fragment to the part within `window`; false when nothing is left. A still object's
-    /// fragments span the exposure, which may be rendered in several windows (passes).
-    pub fn clip_to(&mut self, window: [f64; 2]) -> bool {
-        let mass = [self.mass[0].max(window[0]), self.mass[1].min(window[1])];
-        if mass != self.mass {
-            self.depth = mass.map(|m| self.depth_at(m));
-            self.mass = mass;
-        }
-        mass[1] > mass[0]
-    }
-
     /// Depth along the ray at shutter mass `m`.
     pub fn depth_at(&self, m: f64) -> f64 {
         let [m0, m1] = self.mass;
@@ -214,8 +203,7 @@ pub(crate) fn compact(fragments: &mut Vec<Fragment>, bins: &TimeBins) -> Compact
                 .then(a.1.total_cmp(&b.1))
                 .then(fragments[a.2].id.cmp(&fragments[b.2].id))
         });
-        // Surfaces as runs of `order`.
-        let mut surfaces: Vec<[usize; 2]> = Vec::with_capacity(order.len());
+        // Each run of `order` within the share of the tolerance is one surface.
         let mut start = 0;
         while let Some(&(bin, depth, first)) = order.get(start) {
             let tolerance = fragments[first].tolerance;
@@ -225,11 +213,8 @@ pub(crate) fn compact(fragments: &mut Vec<Fragment>, bins: &TimeBins) -> Compact
                         || other_depth - depth <= widen * tolerance.min(fragments[other].tolerance))
             };
             let end = start + 1 + order[start + 1..].iter().take_while(same_surface).count();
-            surfaces.push([start, end]);
-            start = end;
-        }
-        for [start, end] in surfaces {
             merged.push(merge(order[start..end].iter().map(|e| &fragments[e.2])));
+            start = end;
         }
         std::mem::swap(fragments, &mut merged);
         merged.clear();
@@ -323,8 +308,7 @@ pub(crate) struct Resolved {
     pub background: f64,
 }
 
-/// Exact temporal visibility of `fragments`, which lie within the shutter-mass window `window`
-/// (see [`Fragment::clip_to`]).
+/// Exact temporal visibility of `fragments` over the shutter-mass window `window`.
 ///
 /// Pieces in which every active fragment belongs to one surface need no occlusion test: a run of
 /// such pieces is composited as one span, each fragment's coverage over it integrated in one

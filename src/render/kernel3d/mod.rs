@@ -154,8 +154,8 @@ pub(super) fn render(
         mass = next;
     }
     let exposure = [0.0, mass];
-    // A still object has one kernel for the whole exposure, which the A-buffer clips to whatever
-    // time it needs; a moving one a kernel per sub-frame.
+    // A still object has one kernel for the exposure (for each pass, its part of it), which the
+    // A-buffer clips to whatever time it needs; a moving one a kernel per sub-frame.
     let mut still_kernels = Vec::new();
     let mut moving_surfels = 0;
     for (object, object_plan, surfels) in plan.drawn() {
@@ -200,7 +200,13 @@ pub(super) fn render(
     let mut sums = vec![Resolved::default(); pixel_count];
     for (pass, first) in (0..windows.len()).step_by(per_pass).enumerate() {
         let last = (first + per_pass).min(windows.len());
-        let mut kernels = still_kernels.clone();
+        let span = [windows[first][0], windows[last - 1][1]];
+        // A still kernel's coverage per unit of shutter mass is the same over any interval, so
+        // each pass gives it the pass's own: a pass resolves only its part of the exposure.
+        let mut kernels: Vec<Kernel> = still_kernels
+            .iter()
+            .map(|k| Kernel { mass: span, ..*k })
+            .collect();
         for (object, object_plan, surfels) in plan.drawn() {
             if object_plan.motion != ObjectMotion::Still {
                 for k in first..last {
@@ -230,7 +236,6 @@ pub(super) fn render(
         };
         stats.culled.off_screen += culled.off_screen - repeated_off_screen;
         kernel3d.kernels += (kernels.len() - repeated) - (culled.off_screen - repeated_off_screen);
-        let span = [windows[first][0], windows[last - 1][1]];
         // §5.1's depth buffers, one per sub-frame end of the pass (shared by the sub-frames that
         // meet there).
         let visible_depth: Option<Vec<Vec<f32>>> =
@@ -457,8 +462,7 @@ struct TileWork<'a> {
 /// fragments in the tile, the most on one pixel, and the most held at once. Fragments are made
 /// and resolved one row of the tile at a time, so a worker holds at most one row's: [`TILE_PX`]
 /// pixels of at most [`MAX_FRAGMENTS_PER_PIXEL`] each (a pixel that reaches it has its fragments
-/// merged by surface and sub-frame, [`compact`]). Fragments are clipped to the pass's `exposure`:
-/// a still object's span the whole exposure, which may be drawn in several passes.
+/// merged by surface and sub-frame, [`compact`]).
 fn resolve_tile(
     scene: &Scene,
     work: &TileWork,
@@ -501,12 +505,9 @@ fn resolve_tile(
             }
             for x in x0.max(*bx0)..x1.min(*bx1) {
                 let pixel = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                let Some(mut f) = kernel.fragment(ray(x, y), pixel, camera.near) else {
+                let Some(f) = kernel.fragment(ray(x, y), pixel, camera.near) else {
                     continue;
                 };
-                if !f.clip_to(exposure) {
-                    continue;
-                }
                 out.fragments += 1;
                 let (list, merged) = &mut pixels[(x - x0) as usize];
                 list.push(f);
