@@ -399,29 +399,13 @@ impl Layer {
         }
     }
 
-    /// The layer over a plain `background`.
-    #[must_use]
-    pub fn over_colour(&self, background: [f32; 3]) -> Framebuffer {
-        self.composite(|_| background)
-    }
-
     /// The layer over `below`, an image of the same size.
     #[must_use]
     pub fn over(&self, below: &Framebuffer) -> Framebuffer {
-        self.composite(|i| below.pixels[i])
-    }
-
-    /// colour + transmittance × what lies behind pixel i.
-    fn composite(&self, behind: impl Fn(usize) -> [f32; 3] + Sync) -> Framebuffer {
-        let pixels = self
-            .colour
-            .par_iter()
+        let pixels = (self.colour.par_iter())
             .zip(&self.transmittance)
-            .enumerate()
-            .map(|(i, (c, &t))| {
-                let b = behind(i);
-                [0, 1, 2].map(|k| c[k] + t * b[k])
-            })
+            .zip(&below.pixels)
+            .map(|((&c, &t), &b)| over(c, t, b))
             .collect();
         Framebuffer {
             width: self.width,
@@ -477,17 +461,8 @@ pub fn rasterize<const B: usize>(
     bins: &TimeBins<B>,
 ) -> (Layer, RasterStats) {
     let (width, height) = (target.width, target.height);
-    let grid = TileGrid::new(width, height);
-    // Binned in footprint order; each tile sorts its own list by depth (docs/architecture.md,
-    // "The rasterizer"): a global sort would leave every tile reading its footprints in random
-    // memory order.
-    let lists = TileLists::new(&grid, footprints.len(), |index, visit| {
-        footprints[index as usize].for_each_tile(&grid, visit);
-    });
-
-    // Each task renders one row of tiles into its band of the layer, reusing one scratch buffer.
-    // Every pixel is written there, so the layer starts as zeroed memory, whose pages are faulted
-    // in by the tasks that first write them rather than filled serially here.
+    // Every pixel is written by the tile pass, so the layer starts as zeroed memory, whose pages
+    // are faulted in by the tasks that first write them rather than filled serially here.
     let size = width as usize * height as usize;
     let mut layer = Layer {
         width,
@@ -496,41 +471,118 @@ pub fn rasterize<const B: usize>(
         transmittance: vec![0.0; size],
         front_depth: vec![0.0; size],
     };
-    let band = width as usize * TILE_PX as usize;
-    (layer.colour.par_chunks_mut(band))
+    let band = band_len(width);
+    let bands = (layer.colour.par_chunks_mut(band))
         .zip(layer.transmittance.par_chunks_mut(band))
-        .zip(layer.front_depth.par_chunks_mut(band))
-        .enumerate()
-        .for_each(|(ty, ((colour, transmittance), front_depth))| {
-            let mut scratch = TileScratch::default();
-            for tile in grid.row(ty) {
-                let bounds @ [x0, _, x1, _] = grid.pixels(tile);
-                let pixels = render_tile(
+        .zip(layer.front_depth.par_chunks_mut(band));
+    let stats = tile_pass(
+        footprints,
+        target,
+        bins,
+        bands,
+        |((colour, transmittance), front_depth), i, _, (c, t, d)| {
+            colour[i] = c;
+            transmittance[i] = t;
+            front_depth[i] = d;
+        },
+    );
+    (layer, stats)
+}
+
+/// Rasterize `footprints` like [`rasterize`] and composite the layer at once over `behind`
+/// (what lies behind pixel i), without keeping the layer: what a renderer whose image is one
+/// layer over its background needs, at a third less memory traffic.
+#[must_use]
+pub fn rasterize_over<const B: usize>(
+    footprints: &[Footprint],
+    target: &Target,
+    bins: &TimeBins<B>,
+    behind: impl Fn(usize) -> [f32; 3] + Sync,
+) -> (Framebuffer, RasterStats) {
+    let (width, height) = (target.width, target.height);
+    let mut pixels = vec![[0.0; 3]; width as usize * height as usize];
+    let bands = pixels.par_chunks_mut(band_len(width));
+    let stats = tile_pass(
+        footprints,
+        target,
+        bins,
+        bands,
+        |band, i, pixel, (c, t, _)| {
+            band[i] = over(c, t, behind(pixel));
+        },
+    );
+    let image = Framebuffer {
+        width,
+        height,
+        pixels,
+    };
+    (image, stats)
+}
+
+/// A premultiplied `colour` with `transmittance` over `behind`.
+#[inline]
+fn over(colour: [f32; 3], transmittance: f32, behind: [f32; 3]) -> [f32; 3] {
+    [0, 1, 2].map(|k| colour[k] + transmittance * behind[k])
+}
+
+/// Pixels in one row of tiles.
+fn band_len(width: u32) -> usize {
+    width as usize * TILE_PX as usize
+}
+
+/// Bin `footprints` into tiles and render them, one row of tiles per task: `write(band, i,
+/// pixel, finished)` stores pixel `i` of the `bands` item of its tile row (image pixel index
+/// `pixel`) as (premultiplied colour, transmittance, depth of the visible surface).
+fn tile_pass<const B: usize, T: Send>(
+    footprints: &[Footprint],
+    target: &Target,
+    bins: &TimeBins<B>,
+    bands: impl IndexedParallelIterator<Item = T>,
+    write: impl Fn(&mut T, usize, usize, ([f32; 3], f32, f32)) + Sync,
+) -> RasterStats {
+    let width = target.width as usize;
+    let grid = TileGrid::new(target.width, target.height);
+    // Binned in footprint order; each tile sorts its own list by depth (docs/architecture.md,
+    // "The rasterizer"): a global sort would leave every tile reading its footprints in random
+    // memory order.
+    let lists = TileLists::new(&grid, footprints.len(), |index, visit| {
+        footprints[index as usize].for_each_tile(&grid, visit);
+    });
+    // A tile no footprint reaches is clear, without setting up and finishing its pixel states.
+    let clear = PixelState::<B>::EMPTY.finish(bins);
+    bands.enumerate().for_each(|(ty, mut band)| {
+        let mut scratch = TileScratch::default();
+        let band_start = ty * band_len(target.width);
+        for tile in grid.row(ty) {
+            let [x0, y0, x1, y1] = grid.pixels(tile);
+            let list = lists.list(tile);
+            let pixels = if list.is_empty() {
+                &[]
+            } else {
+                render_tile(
                     footprints,
-                    lists.list(tile),
-                    bounds,
+                    list,
+                    [x0, y0, x1, y1],
                     target,
                     bins,
                     &mut scratch,
-                );
-                let w = (x1 - x0) as usize;
-                for (r, row) in pixels.chunks(w).enumerate() {
-                    let start = r * width as usize + x0 as usize;
-                    for (i, pixel) in row.iter().enumerate() {
-                        let (c, t, d) = pixel.finish(bins);
-                        colour[start + i] = c;
-                        transmittance[start + i] = t;
-                        front_depth[start + i] = d;
-                    }
+                )
+            };
+            let w = (x1 - x0) as usize;
+            for r in 0..(y1 - y0) as usize {
+                let start = r * width + x0 as usize;
+                for i in 0..w {
+                    let finished = pixels.get(r * w + i).map_or(clear, |p| p.finish(bins));
+                    write(&mut band, start + i, band_start + start + i, finished);
                 }
             }
-        });
-    let stats = RasterStats {
+        }
+    });
+    RasterStats {
         footprints: footprints.len(),
         tile_entries: lists.entries(),
         max_per_tile: lists.longest(),
-    };
-    (layer, stats)
+    }
 }
 
 /// What rendering a tile needs and can reuse from one tile to the next.
@@ -653,9 +705,8 @@ mod tests {
         height: u32,
         background: [f32; 3],
     ) -> Framebuffer {
-        rasterize(footprints, &Target::new(width, height), &TimeBins::INSTANT)
-            .0
-            .over_colour(background)
+        let target = Target::new(width, height);
+        rasterize_over(footprints, &target, &TimeBins::INSTANT, |_| background).0
     }
 
     fn splat(center: DVec2, variance: f64, weight: f64, colour: [f32; 3], depth: f64) -> Footprint {

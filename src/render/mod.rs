@@ -38,7 +38,7 @@ pub use triangles::{Exposure, TriangleStats, MAX_TRIANGLE_ITEMS};
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{Plan, TOLERANCE_RANGE_PX};
-use crate::raster::{rasterize, Footprint, Layer, RasterStats, Target, TimeBins};
+use crate::raster::{rasterize, rasterize_over, Footprint, Layer, RasterStats, Target, TimeBins};
 use crate::scene::Scene;
 use crate::style::Style;
 use std::sync::Arc;
@@ -344,13 +344,11 @@ pub(crate) fn render_planned(plan: &Plan, progress: Option<Progress>) -> Render 
 /// The surfels of the scene as `plan` draws them (with its level of detail) splatted at time `t`,
 /// as a layer, counting into `stats`.
 fn instant_layer(scene: &Scene, plan: &Plan, t: f64, stats: &mut Stats) -> Layer {
-    rasterize_counted(
-        scene,
-        &still::footprints_at(scene, plan, t, &mut stats.culled),
-        &TimeBins::INSTANT,
-        None,
-        stats,
-    )
+    let footprints = still::footprints_at(scene, plan, t, &mut stats.culled);
+    let target = Target::new(scene.camera.width, scene.camera.height);
+    let (layer, raster) = rasterize(&footprints, &target, &TimeBins::INSTANT);
+    stats.add_raster(&raster);
+    layer
 }
 
 /// The image: `footprints` (of the surfel objects) rasterized in time bins `bins` over the
@@ -365,30 +363,18 @@ fn draw<const B: usize>(
     stats: &mut Stats,
 ) -> Framebuffer {
     let scene = plan.scene();
-    if !plan.any_triangles() {
-        return rasterize_counted(scene, footprints, bins, None, stats)
-            .over_colour(scene.background);
-    }
-    let drawn = triangles::draw(plan, exposure);
-    stats.triangles.add(&drawn.stats);
-    let layer = rasterize_counted(scene, footprints, bins, Some(&drawn.hidden_beyond), stats);
-    layer.over(&drawn.image)
-}
-
-/// Rasterize footprints at the scene's size in time bins `bins`, left out where they lie beyond
-/// `occluder`, counting into `stats`.
-fn rasterize_counted<const B: usize>(
-    scene: &Scene,
-    footprints: &[Footprint],
-    bins: &TimeBins<B>,
-    occluder: Option<&[f32]>,
-    stats: &mut Stats,
-) -> Layer {
-    let target = Target {
-        occluder,
-        ..Target::new(scene.camera.width, scene.camera.height)
+    let target = Target::new(scene.camera.width, scene.camera.height);
+    let (image, raster) = if plan.any_triangles() {
+        let drawn = triangles::draw(plan, exposure);
+        stats.triangles.add(&drawn.stats);
+        let target = Target {
+            occluder: Some(&drawn.hidden_beyond),
+            ..target
+        };
+        rasterize_over(footprints, &target, bins, |i| drawn.image.pixels[i])
+    } else {
+        rasterize_over(footprints, &target, bins, |_| scene.background)
     };
-    let (layer, raster) = rasterize(footprints, &target, bins);
     stats.add_raster(&raster);
-    layer
+    image
 }

@@ -595,6 +595,7 @@ impl<'a> NearestSweep<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::framebuffer::Framebuffer;
 
     const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
 
@@ -834,7 +835,7 @@ mod tests {
         let layer = strokes(std::slice::from_ref(&line), &look, 100, 100);
         let background = [0.2, 0.3, 0.4];
         let image = draw(&[line], &look, 100, 100)
-            .over_colour(background)
+            .over(&Framebuffer::filled(100, 100, background))
             .pixels;
         assert_eq!(image[10 * 100 + 50], background);
         for (got, want) in image[50 * 100 + 50].iter().zip(colour) {
