@@ -4,8 +4,9 @@
 //! ([`kernel`], §4.1), is bounded on screen (§4.3), integrated along each pixel's ray in closed
 //! form ([`integral`], §4.2), and its fragments are resolved per pixel by the A-buffer
 //! ([`crate::render::abuffer`], §4.4, or the GPU approximation of §5). Kernels of all sub-frames
-//! are binned together and each tile is resolved over the whole exposure, one tile per worker at
-//! a time, so fragments never outlive their tile.
+//! are binned together into tiles; a worker resolves a tile one row of pixels and one time bin
+//! of sub-frames at a time (the parts of the exposure add up), so fragments never outlive their
+//! row and bin.
 //!
 //! One choice differs from the paper: a kernel's weight over its sub-frame is uniform in time
 //! (the shutter's own weight), not a truncated Gaussian, so consecutive sub-frames add up to the
@@ -27,7 +28,7 @@ use crate::render::abuffer::{
 use crate::scene::{Object, Scene};
 use crate::surfels::Surfel;
 use glam::{DVec2, DVec3};
-use kernel::{hull_overlaps, Kernel};
+use kernel::{hull_overlaps, Kernel, Prepared};
 use rayon::prelude::*;
 
 /// How fragments are resolved.
@@ -257,7 +258,6 @@ pub(super) fn render(
                     scene,
                     &work,
                     grid.pixels(tile),
-                    span,
                     &windows[first..last],
                     visible_depth.as_deref(),
                 )
@@ -275,11 +275,7 @@ pub(super) fn render(
             blocks.push(tile.resolved);
         }
         grid.scatter(&blocks, sums.par_chunks_mut(width as usize), |row, x, r| {
-            let sum = &mut row[x];
-            for c in 0..3 {
-                sum.colour[c] += r.colour[c];
-            }
-            sum.background += r.background;
+            row[x].add(r);
         });
         kernel3d.passes += 1;
         kernel3d.peak_kernels = kernel3d.peak_kernels.max(kernels.len());
@@ -459,15 +455,19 @@ struct TileWork<'a> {
 }
 
 /// The fragments of the tile over pixels [x0, x1) × [y0, y1) resolved per pixel, the number of
-/// fragments in the tile, the most on one pixel, and the most held at once. Fragments are made
-/// and resolved one row of the tile at a time, so a worker holds at most one row's: [`TILE_PX`]
-/// pixels of at most [`MAX_FRAGMENTS_PER_PIXEL`] each (a pixel that reaches it has its fragments
-/// merged by surface and sub-frame, [`compact`]).
+/// fragments in the tile, the most on one pixel, and the most held at once.
+///
+/// Fragments are made and resolved one row of the tile at a time, and within a row one time bin
+/// of sub-frames at a time ([`TimeBins`]): a moving kernel's fragments lie within its sub-frame,
+/// so each bin's resolve is exact over its own part of the exposure and the parts add up, as the
+/// passes do. Kernels spanning the pass (still objects') leave fragments that are made once per
+/// row and clipped to each bin. A worker holds at most one row's: [`TILE_PX`] pixels of at most
+/// [`MAX_FRAGMENTS_PER_PIXEL`] each of the bin and as many of the still kernels (a list that
+/// reaches it has its fragments merged by surface, [`compact`]).
 fn resolve_tile(
     scene: &Scene,
     work: &TileWork,
     [x0, y0, x1, y1]: [u32; 4],
-    exposure: [f64; 2],
     windows: &[[f64; 2]],
     visible_depth: Option<&[Vec<f32>]>,
 ) -> TileResult {
@@ -481,25 +481,52 @@ fn resolve_tile(
             -1.0,
         )
     };
-    let prepared: Vec<_> = work
-        .list
-        .iter()
-        .map(|&index| {
+    let bins = TimeBins::new(windows);
+    // The tile's kernels by the bin holding them (those spanning the pass last), in kernel order
+    // within each.
+    let bin_of: Vec<usize> = (work.list.iter())
+        .map(|&index| bins.of(work.kernels[index as usize].mass))
+        .collect();
+    let mut order: Vec<usize> = (0..work.list.len()).collect();
+    order.sort_by_key(|&j| bin_of[j]);
+    let prepared: Vec<_> = order
+        .into_iter()
+        .map(|j| {
+            let index = work.list[j];
             (
+                bin_of[j],
                 work.kernels[index as usize].prepare(index),
                 work.bounds[index as usize],
             )
         })
         .collect();
+    let group = |bin: usize| {
+        let start = prepared.partition_point(|p| p.0 < bin);
+        let end = prepared.partition_point(|p| p.0 <= bin);
+        &prepared[start..end]
+    };
+    let each_bin: Vec<TimeBins> = (0..bins.len())
+        .map(|b| TimeBins::new(&[bins.span(b)]))
+        .collect();
+    let pass = [bins.span(0)[0], bins.span(bins.len() - 1)[1]];
+    let exposure = pass[1] - pass[0];
+    let pass = TimeBins::new(&[pass]);
     let mut out = TileResult {
         resolved: Vec::with_capacity(w * (y1 - y0) as usize),
         ..TileResult::default()
     };
-    let bins = TimeBins::new(windows);
-    // Per pixel of a row: its fragments, and how they were merged if they reached the cap.
-    let mut pixels: Vec<(Vec<Fragment>, Option<Compaction>)> = vec![(Vec::new(), None); w];
-    for y in y0..y1 {
-        for (kernel, [bx0, by0, bx1, by1]) in &prepared {
+    // Per pixel of a row: the fragments of still kernels and of the bin being resolved, each
+    // with how it was merged if it reached the cap; and the pixel's sum.
+    let mut still: Vec<(Vec<Fragment>, Option<Compaction>)> = vec![(Vec::new(), None); w];
+    let mut pixels = still.clone();
+    let mut sums = vec![Resolved::default(); w];
+    // Fragments of `kernels` on row y added to `lists`, each compacted within `bins` when full.
+    let make = |kernels: &[(usize, Prepared, [u32; 4])],
+                y: u32,
+                lists: &mut [(Vec<Fragment>, Option<Compaction>)],
+                bins: &TimeBins,
+                out: &mut TileResult| {
+        for (_, kernel, [bx0, by0, bx1, by1]) in kernels {
             if !(*by0..*by1).contains(&y) {
                 continue;
             }
@@ -509,43 +536,67 @@ fn resolve_tile(
                     continue;
                 };
                 out.fragments += 1;
-                let (list, merged) = &mut pixels[(x - x0) as usize];
-                list.push(f);
-                if list.len() == MAX_FRAGMENTS_PER_PIXEL {
-                    out.peak_pixel = MAX_FRAGMENTS_PER_PIXEL;
-                    *merged = (*merged).max(Some(compact(list, &bins)));
-                }
+                push_capped(&mut lists[(x - x0) as usize], f, bins, out);
             }
         }
-        let held: usize = pixels.iter().map(|(list, _)| list.len()).sum();
-        out.resolved_fragments += held;
-        out.peak_held = out.peak_held.max(held);
-        for (i, (list, merged)) in pixels.iter_mut().enumerate() {
-            out.merged += usize::from(merged.is_some());
-            out.widened += usize::from(*merged == Some(Compaction::Widened));
-            *merged = None;
-            out.peak_pixel = out.peak_pixel.max(list.len());
-            out.resolved.push(match visible_depth {
-                None => resolve_exact(list, exposure),
-                Some(depths) => {
-                    let p = y as usize * camera.width as usize + x0 as usize + i;
-                    // §5.5: the passes run per sub-frame and add up, weighted by the shutter.
-                    let mut sum = Resolved::default();
-                    for (window, ends) in windows.iter().zip(depths.windows(2)) {
-                        let (start, end) = (&ends[0], &ends[1]);
-                        let r = resolve_approximate(list, *window, [start[p], end[p]]);
-                        for c in 0..3 {
-                            sum.colour[c] += r.colour[c];
-                        }
-                        sum.background += r.background;
-                    }
-                    sum
+    };
+    for y in y0..y1 {
+        make(group(bins.len()), y, &mut still, &pass, &mut out);
+        for (b, bin) in each_bin.iter().enumerate() {
+            make(group(b), y, &mut pixels, bin, &mut out);
+            let span = bins.span(b);
+            for (pixel, (still, _)) in pixels.iter_mut().zip(&still) {
+                for f in still.iter().filter_map(|f| f.clipped(span)) {
+                    push_capped(pixel, f, bin, &mut out);
                 }
-            });
-            list.clear();
+            }
+            let held: usize = (pixels.iter().chain(&still))
+                .map(|(list, _)| list.len())
+                .sum();
+            out.peak_held = out.peak_held.max(held);
+            for (i, (list, _)) in pixels.iter_mut().enumerate() {
+                out.resolved_fragments += list.len();
+                out.peak_pixel = out.peak_pixel.max(list.len());
+                match visible_depth {
+                    None => sums[i].add(&resolve_exact(list, span, exposure)),
+                    Some(depths) => {
+                        let p = y as usize * camera.width as usize + x0 as usize + i;
+                        // §5.5: the passes run per sub-frame and add up, weighted by the shutter.
+                        for k in bins.windows(b) {
+                            let ends = [depths[k][p], depths[k + 1][p]];
+                            sums[i].add(&resolve_approximate(list, windows[k], ends));
+                        }
+                    }
+                }
+                list.clear();
+            }
+        }
+        for ((sum, (_, merged)), (still, still_merged)) in
+            sums.iter_mut().zip(&mut pixels).zip(&mut still)
+        {
+            let merged = merged.take().max(still_merged.take());
+            out.merged += usize::from(merged.is_some());
+            out.widened += usize::from(merged == Some(Compaction::Widened));
+            out.resolved.push(std::mem::take(sum));
+            still.clear();
         }
     }
     out
+}
+
+/// Add `f` to a pixel's list, merging the list's fragments within `bins` ([`compact`]) when it
+/// reaches [`MAX_FRAGMENTS_PER_PIXEL`].
+fn push_capped(
+    (list, merged): &mut (Vec<Fragment>, Option<Compaction>),
+    f: Fragment,
+    bins: &TimeBins,
+    out: &mut TileResult,
+) {
+    list.push(f);
+    if list.len() == MAX_FRAGMENTS_PER_PIXEL {
+        out.peak_pixel = MAX_FRAGMENTS_PER_PIXEL;
+        *merged = (*merged).max(Some(compact(list, bins)));
+    }
 }
 
 /// One tile resolved, and what it took.
