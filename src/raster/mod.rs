@@ -491,7 +491,8 @@ pub fn rasterize<const B: usize>(
 
 /// Rasterize `footprints` like [`rasterize`] and composite the layer at once over `behind`
 /// (what lies behind pixel i), without keeping the layer: what a renderer whose image is one
-/// layer over its background needs, at a third less memory traffic.
+/// layer over its background needs, without the layer's memory (20 MB at 1024²) and a second
+/// pass over it.
 #[must_use]
 pub fn rasterize_over<const B: usize>(
     footprints: &[Footprint],

@@ -155,8 +155,8 @@ pub(super) fn render(
         mass = next;
     }
     let exposure = [0.0, mass];
-    // A still object has one kernel for the exposure (for each pass, its part of it), which the
-    // A-buffer clips to whatever time it needs; a moving one a kernel per sub-frame.
+    // A still object has one kernel for the exposure, whose fragments each time bin clips to its
+    // own part of it (`resolve_tile`); a moving one a kernel per sub-frame.
     let mut still_kernels = Vec::new();
     let mut moving_surfels = 0;
     for (object, object_plan, surfels) in plan.drawn() {
@@ -201,13 +201,7 @@ pub(super) fn render(
     let mut sums = vec![Resolved::default(); pixel_count];
     for (pass, first) in (0..windows.len()).step_by(per_pass).enumerate() {
         let last = (first + per_pass).min(windows.len());
-        let span = [windows[first][0], windows[last - 1][1]];
-        // A still kernel's coverage per unit of shutter mass is the same over any interval, so
-        // each pass gives it the pass's own: a pass resolves only its part of the exposure.
-        let mut kernels: Vec<Kernel> = still_kernels
-            .iter()
-            .map(|k| Kernel { mass: span, ..*k })
-            .collect();
+        let mut kernels = still_kernels.clone();
         for (object, object_plan, surfels) in plan.drawn() {
             if object_plan.motion != ObjectMotion::Still {
                 for k in first..last {
