@@ -16,8 +16,7 @@ use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_
 use crate::scene::camera::Camera;
 use crate::scene::{Object, Scene, TriangleMesh};
 use crate::simplify::speed::{self, DetailRule, ScreenMotion};
-use crate::surfels::Mesh;
-use crate::surfels::Surfel;
+use crate::surfels::{Colouring, Mesh, Surfel};
 use glam::{DVec2, DVec3};
 
 /// A sub-segment may be at most this many tolerances long on screen. One motion ellipse stands
@@ -270,9 +269,8 @@ impl<'a> Plan<'a> {
             plan.shadow_cameras = scene
                 .lighting
                 .sources()
-                .iter()
                 .filter(|source| source.shadows())
-                .map(|source| light_camera(source, scene, &plan))
+                .map(|source| light_camera(&source, scene, &plan))
                 .collect();
         }
         Ok(plan)
@@ -786,6 +784,13 @@ fn mesh_lod(
     if let Some(why) = why {
         return Ok(MeshLod::Full(why));
     }
+    // Drawn as surfels, a simplified mesh is resampled in one colour: a mesh of several keeps
+    // its own surfels, so it is not simplified at all.
+    let one_colour = |colours: &[[f32; 3]]| colours.windows(2).all(|w| w[0] == w[1]);
+    let as_triangles = draws_triangles(method, object);
+    if !as_triangles && !one_colour(&mesh.colours) {
+        return Ok(MeshLod::Full("several colours, drawn as its own surfels"));
+    }
     let shutter = [scene.shutter.open, scene.shutter.close];
     let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
     let limits = motion.limits(&scene.mesh_detail);
@@ -798,8 +803,7 @@ fn mesh_lod(
         return Ok(MeshLod::Full("the simplifier could not take it"));
     };
     let simplified = &shared.0;
-    let one_colour = simplified.colours.windows(2).all(|w| w[0] == w[1]);
-    let surfels = if draws_triangles(method, object) || !one_colour {
+    let surfels = if as_triangles || !one_colour(&simplified.colours) {
         None
     } else {
         // As many surfels per face as the full mesh had.
@@ -813,9 +817,7 @@ fn mesh_lod(
         };
         let colour = simplified.colours.first().copied().unwrap_or_default();
         let mut surfels = crate::surfels::from_mesh(&source, count, false)?;
-        for s in &mut surfels {
-            s.colour = colour;
-        }
+        Colouring::Rgb(colour).apply(&mut surfels);
         Some(surfels)
     };
     Ok(MeshLod::Simplified {

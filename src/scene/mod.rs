@@ -222,19 +222,14 @@ impl Lighting {
     #[must_use]
     pub fn direct(&self, normal: DVec3, position: DVec3) -> f64 {
         self.sources()
-            .iter()
             .map(|source| source.irradiance(normal, position))
             .sum()
     }
 
     /// Every light: the directional ones, then the spots.
-    #[must_use]
-    pub fn sources(&self) -> Vec<LightSource<'_>> {
-        self.lights
-            .iter()
-            .map(LightSource::Directional)
+    pub fn sources(&self) -> impl Iterator<Item = LightSource<'_>> + '_ {
+        (self.lights.iter().map(LightSource::Directional))
             .chain(self.spots.iter().map(LightSource::Spot))
-            .collect()
     }
 }
 

@@ -125,14 +125,9 @@ fn is_closed(triangles: &[[u32; 3]]) -> bool {
             .all(|&(a, b)| edges.binary_search(&(b, a)).is_ok())
 }
 
-/// Each corner's normal: the sum of the (area-weighted) normals of the faces around its vertex
-/// within [`CREASE_DEGREES`] of its own face's, normalized.
-fn corner_normals(
-    vertices: usize,
-    triangles: &[[u32; 3]],
-    face_normals: &[DVec3],
-) -> Vec<[DVec3; 3]> {
-    // Faces around each vertex, as a compressed list.
+/// The faces around each of `vertices` vertices, as a compressed list: vertex v's are
+/// `faces[starts[v]..starts[v + 1]]`, in face order.
+pub(crate) fn faces_around(vertices: usize, triangles: &[[u32; 3]]) -> (Vec<usize>, Vec<u32>) {
     let mut starts = vec![0usize; vertices + 1];
     for t in triangles {
         for &v in t {
@@ -150,6 +145,17 @@ fn corner_normals(
             fill[v as usize] += 1;
         }
     }
+    (starts, faces)
+}
+
+/// Each corner's normal: the sum of the (area-weighted) normals of the faces around its vertex
+/// within [`CREASE_DEGREES`] of its own face's, normalized.
+fn corner_normals(
+    vertices: usize,
+    triangles: &[[u32; 3]],
+    face_normals: &[DVec3],
+) -> Vec<[DVec3; 3]> {
+    let (starts, faces) = faces_around(vertices, triangles);
     let cos_crease = CREASE_DEGREES.to_radians().cos();
     let units: Vec<DVec3> = face_normals.iter().map(|n| n.normalize()).collect();
     triangles

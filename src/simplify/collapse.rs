@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use super::heap::{Entry, Heap};
 use super::quadric::Quadric;
 use super::{Limits, Weighting};
+use crate::scene::triangles::faces_around;
 
 /// Largest turn of a face's normal a collapse may cause, degrees: past a right angle a face has
 /// folded over; a little short of it catches the near-folds that flip with the next collapse.
@@ -62,10 +63,10 @@ pub(super) struct Collapser<'w> {
     pub positions: Vec<DVec3>,
     pub faces: Vec<[u32; 3]>,
     pub face_alive: Vec<bool>,
-    pub vertex_alive: Vec<bool>,
+    vertex_alive: Vec<bool>,
     /// Per-vertex channels carried along, `channels` numbers each, interpolated along the edge.
     pub carried: Vec<f32>,
-    pub channels: usize,
+    channels: usize,
     quadrics: Vec<Quadric>,
     /// Faces around each vertex: `refs[start[v]..start[v] + count[v]]`, stale faces included
     /// until the vertex is next rewritten; a merged vertex's list is appended at the end.
@@ -101,23 +102,7 @@ impl<'w> Collapser<'w> {
         limits: Option<&Limits>,
     ) -> Collapser<'w> {
         let n = positions.len();
-        let mut start = vec![0usize; n + 1];
-        for f in &faces {
-            for &v in f {
-                start[v as usize + 1] += 1;
-            }
-        }
-        for i in 1..=n {
-            start[i] += start[i - 1];
-        }
-        let mut refs = vec![0u32; start[n]];
-        let mut fill = start.clone();
-        for (i, f) in faces.iter().enumerate() {
-            for &v in f {
-                refs[fill[v as usize]] = i as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let (mut start, refs) = faces_around(n, &faces);
         let count: Vec<u32> = (0..n).map(|v| (start[v + 1] - start[v]) as u32).collect();
         start.pop();
 

@@ -91,8 +91,6 @@ pub struct Simplified {
     pub mesh: Mesh,
     /// The carried per-vertex channels of the result's vertices, as many per vertex as given.
     pub carried: Vec<f32>,
-    /// Faces in the input.
-    pub faces_in: usize,
     /// What was repaired first.
     pub repairs: Repairs,
     /// What the collapse loop did and refused.
@@ -173,7 +171,6 @@ pub fn simplify(
         options.limits.as_ref(),
     );
     repairs.non_manifold_edges = collapser.non_manifold_edges;
-    let faces_in = mesh.triangles.len();
     collapser.run(options.target_faces, progress);
     let reached_target = collapser.live_faces <= options.target_faces;
 
@@ -204,7 +201,6 @@ pub fn simplify(
     Ok(Simplified {
         mesh: out,
         carried: carried_out,
-        faces_in,
         repairs,
         stats: collapser.stats,
         reached_target,

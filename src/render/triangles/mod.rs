@@ -257,11 +257,11 @@ impl<'a> Prepared<'a> {
             camera,
             view_to_world,
             exposure,
-            sources: scene.lighting.sources(),
+            sources: scene.lighting.sources().collect(),
             shadows,
             receivers: match plan.method() {
                 Method::Analytic { receivers, .. } => *receivers,
-                _ => Receivers::Sampled,
+                _ => Receivers::default(),
             },
             objects,
             items: Vec::new(),
@@ -549,8 +549,9 @@ impl<'a> Prepared<'a> {
     /// Mean colour of a visible piece, weighted by the shutter. The piece is cut where the
     /// surface turns towards or away from a light (eq. 2.5: N·L, quadratic in time, through its
     /// values at the piece's ends and middle) and where a shadow can start or end (exact for a
-    /// receiver within one texel footprint, [`ShadowMap::breakpoints`]; max(2|pₑ − pₛ|, 5) equal
-    /// cuts for one sweeping texels); visibility is taken at each cut piece's middle and the
+    /// receiver within one texel footprint, [`ShadowMap::breakpoints`]; for one sweeping texels,
+    /// max(2|pₑ − pₛ|, 5) equal cuts, or with `Receivers::Traced` the cuts of
+    /// [`ShadowMap::traced_breakpoints`]); visibility is taken at each cut piece's middle and the
     /// rest integrated at three Gauss–Legendre times.
     fn piece_colour(&self, piece: &Interval, d: DVec3) -> [f64; 3] {
         let item = &self.items[piece.item as usize];

@@ -9,7 +9,9 @@
 //! filtering). A static receiver's lit times are exact: within a texel each occluder piece's depth
 //! is linear in time, so the times where it passes the receiver's depth are roots of a line;
 //! [`ShadowMap::breakpoints`] gives them, and visibility is constant between them. A receiver
-//! that sweeps texels is point-sampled at max(2|pₑ − pₛ|, 5) times (Palmér §4.1).
+//! that sweeps texels is point-sampled at max(2|pₑ − pₛ|, 5) times (Palmér §4.1), or with
+//! `Receivers::Traced` has its path cut where it crosses the texel grid and each cut found as a
+//! static one's ([`ShadowMap::traced_breakpoints`]).
 
 use glam::{DVec2, DVec3};
 
