@@ -114,8 +114,9 @@ pub enum MeshLod {
         mesh: speed::Shared,
         /// Slowest and fastest vertex on screen, px per shutter.
         speed_px: [f64; 2],
-        /// Surfels resampled from the simplified mesh for the splat methods, if they were.
-        surfels: Option<Vec<Surfel>>,
+        /// How many surfels were resampled from the simplified mesh for the splat methods, if
+        /// they were (the object's plan draws them).
+        resampled: Option<usize>,
     },
 }
 
@@ -128,9 +129,9 @@ impl MeshLod {
             MeshLod::Simplified {
                 mesh,
                 speed_px,
-                surfels,
+                resampled,
             } => {
-                let (triangles, result) = &**mesh;
+                let (triangles, stats) = &**mesh;
                 format!(
                     "mesh: {faces_in} faces → {} (screen speed {:.0}–{:.0} px per shutter; projected perimeters up to {} v + {} px; collapses refused: {} at the detail limit, {} folding, {} topology, {} valence){}",
                     triangles.triangles.len(),
@@ -138,12 +139,12 @@ impl MeshLod {
                     speed_px[1],
                     rule.sigma_speed,
                     rule.sigma_base,
-                    result.stats.limit_refusals,
-                    result.stats.fold_refusals,
-                    result.stats.topology_refusals,
-                    result.stats.valence_refusals,
-                    match surfels {
-                        Some(s) => format!("; {} surfels resampled from it", s.len()),
+                    stats.limit_refusals,
+                    stats.fold_refusals,
+                    stats.topology_refusals,
+                    stats.valence_refusals,
+                    match resampled {
+                        Some(count) => format!("; {count} surfels resampled from it"),
                         None => String::new(),
                     }
                 )
@@ -221,22 +222,16 @@ impl<'a> Plan<'a> {
                 } else {
                     ObjectMotion::Still
                 };
-                let mesh_lod = mesh_lod(scene, object, moves, method, lod)?;
-                let resampled = match &mesh_lod {
-                    MeshLod::Simplified {
-                        surfels: Some(s), ..
-                    } => Some(s.as_slice()),
-                    _ => None,
-                };
-                let surfels = resampled.unwrap_or(object.surfels());
+                let (mesh_lod, resampled) = mesh_lod(scene, object, moves, method, lod)?;
+                let surfels = resampled.as_deref().unwrap_or(object.surfels());
                 let kernels = matches!(method, Method::Kernel3d { .. });
                 let mut lod = match lod.blurred_cells(kernels) {
                     _ if draws_triangles(method, object) => ObjectLod::OFF,
                     None => ObjectLod::OFF,
                     Some(cells) => object_lod(scene, object, surfels, &motion, method, cells),
                 };
-                if let (None, Some(resampled)) = (&lod.merged, resampled) {
-                    lod.merged = Some(resampled.to_vec());
+                if lod.merged.is_none() {
+                    lod.merged = resampled;
                 }
                 Ok(ObjectPlan {
                     name: object.name.clone(),
@@ -763,16 +758,16 @@ fn plan_motion(
 /// simplified as far as each vertex's screen speed allows for the shutter, drawn so by
 /// `analytic` and each `reference` frame, and resampled into surfels for `blur` and `kernel3d`
 /// when the mesh has one colour. Still meshes, `static` (a sharp instant) and hints (whose
-/// object is drawn sharp) keep full detail.
+/// object is drawn sharp) keep full detail. Returns it with the resampled surfels.
 fn mesh_lod(
     scene: &Scene,
     object: &Object,
     moves: bool,
     method: &Method,
     lod: Lod,
-) -> Result<MeshLod> {
+) -> Result<(MeshLod, Option<Vec<Surfel>>)> {
     let Some(mesh) = object.mesh() else {
-        return Ok(MeshLod::NoMesh);
+        return Ok((MeshLod::NoMesh, None));
     };
     let why = match method {
         _ if lod == Lod::Off => Some("--lod off"),
@@ -782,14 +777,17 @@ fn mesh_lod(
         _ => None,
     };
     if let Some(why) = why {
-        return Ok(MeshLod::Full(why));
+        return Ok((MeshLod::Full(why), None));
     }
     // Drawn as surfels, a simplified mesh is resampled in one colour: a mesh of several keeps
     // its own surfels, so it is not simplified at all.
     let one_colour = |colours: &[[f32; 3]]| colours.windows(2).all(|w| w[0] == w[1]);
     let as_triangles = draws_triangles(method, object);
     if !as_triangles && !one_colour(&mesh.colours) {
-        return Ok(MeshLod::Full("several colours, drawn as its own surfels"));
+        return Ok((
+            MeshLod::Full("several colours, drawn as its own surfels"),
+            None,
+        ));
     }
     let shutter = [scene.shutter.open, scene.shutter.close];
     let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
@@ -800,7 +798,7 @@ fn mesh_lod(
         .fold([f64::INFINITY, 0.0], |[lo, hi], &v| [lo.min(v), hi.max(v)]);
     // A mesh the simplifier cannot take (no face with an area left, say) is drawn as it is.
     let Ok(shared) = speed::simplified(mesh, limits, motion.motion) else {
-        return Ok(MeshLod::Full("the simplifier could not take it"));
+        return Ok((MeshLod::Full("the simplifier could not take it"), None));
     };
     let simplified = &shared.0;
     let surfels = if as_triangles || !one_colour(&simplified.colours) {
@@ -820,9 +818,10 @@ fn mesh_lod(
         Colouring::Rgb(colour).apply(&mut surfels);
         Some(surfels)
     };
-    Ok(MeshLod::Simplified {
+    let lod = MeshLod::Simplified {
         mesh: shared,
         speed_px,
-        surfels,
-    })
+        resampled: surfels.as_ref().map(Vec::len),
+    };
+    Ok((lod, surfels))
 }

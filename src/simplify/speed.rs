@@ -18,7 +18,7 @@ use std::sync::{Arc, Mutex};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{simplify, Limits, Options, Simplified, Weighting};
+use super::{simplify, Limits, Options, Simplified, Stats, Weighting};
 use crate::error::Result;
 use crate::scene::camera::Camera;
 use crate::scene::{Object, TriangleMesh};
@@ -169,8 +169,8 @@ impl ScreenMotion {
     }
 }
 
-/// A simplified mesh, shared by the cache.
-pub type Shared = Arc<(TriangleMesh, Simplified)>;
+/// A simplified mesh and what its collapse loop did, shared by the cache.
+pub type Shared = Arc<(TriangleMesh, Stats)>;
 
 type Cache = Vec<(u64, Shared)>;
 static CACHE: Mutex<Cache> = Mutex::new(Vec::new());
@@ -210,18 +210,18 @@ pub fn simplified(mesh: &TriangleMesh, limits: Limits, motion: Vec<DVec3>) -> Re
         triangles: mesh.triangles.clone(),
     };
     let colours: Vec<f32> = mesh.colours.iter().flatten().copied().collect();
-    let result = simplify(&input, &options, (&colours, 3), &mut |_| {})?;
-    let colours = result
-        .carried
+    let Simplified {
+        mesh: out,
+        carried,
+        stats,
+        ..
+    } = simplify(&input, &options, (&colours, 3), &mut |_| {})?;
+    let colours = carried
         .chunks_exact(3)
         .map(|c| [c[0], c[1], c[2]])
         .collect();
-    let triangles = TriangleMesh::from_parts(
-        result.mesh.positions.clone(),
-        result.mesh.triangles.clone(),
-        colours,
-    )?;
-    let shared = Arc::new((triangles, result));
+    let triangles = TriangleMesh::from_parts(out.positions, out.triangles, colours)?;
+    let shared = Arc::new((triangles, stats));
     let mut cache = lock();
     if cache.len() >= CACHE_ENTRIES {
         cache.remove(0);
