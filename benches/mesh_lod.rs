@@ -142,8 +142,8 @@ fn main() -> streak::Result<()> {
                 triangles: mesh.triangles.clone(),
             };
             let target = (share * mesh.triangles.len() as f64) as usize;
-            let motion =
-                ScreenMotion::of(&scene.camera, object, &mesh.positions, [0.0, 1.0]).motion;
+            let shutter = [scene.shutter.open, scene.shutter.close];
+            let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter).motion;
             let mut line = format!(
                 "{} at {speed} px/shutter: full {} faces, analytic {full_time:.2} s; at {target} faces ꟻLIP vs full:",
                 case.name,
