@@ -24,7 +24,7 @@ use crate::raster::{TileGrid, TileLists};
 use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, TriangleMesh};
 use intervals::{resolve, Interval, ResolveScratch};
-use shadow::{Occluder, Occluders, ShadowMap};
+use shadow::{Occluder, Occluders, Receiver, ShadowMap};
 use tct::{EdgeFunctions, MovingTriangle};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
@@ -617,13 +617,17 @@ impl<'a> Prepared<'a> {
             .zip(&surely_lit)
             .filter(|(_, &lit)| !lit)
         {
-            let (normal, start) = ends[0];
-            let end = ends[1].1;
-            let sweep = map.sweep(start, end);
+            let receiver = Receiver {
+                path: [ends[0].1, ends[1].1],
+                normal: ends[0].0,
+                span,
+                own,
+            };
+            let sweep = map.sweep(receiver.path[0], receiver.path[1]);
             if sweep < 1.0 {
-                map.breakpoints([start, end], normal, span, own, &mut cuts);
+                map.breakpoints(&receiver, &mut cuts);
             } else if !(self.receivers == Receivers::Traced
-                && map.traced_breakpoints([start, end], normal, span, own, &mut cuts))
+                && map.traced_breakpoints(&receiver, &mut cuts))
             {
                 point_sampled = true;
                 let count = (2.0 * sweep)

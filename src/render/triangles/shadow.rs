@@ -35,6 +35,19 @@ const DIRECTIONAL_DISTANCE: f64 = 50.0;
 /// Most point samples of a receiver sweeping the shadow map, per visible piece.
 pub const MAX_RECEIVER_SAMPLES: usize = 256;
 
+/// A receiver point moving linearly over part of the exposure, as the shadow cuts see it.
+#[derive(Clone, Copy, Debug)]
+pub struct Receiver {
+    /// Its world positions at the span's ends.
+    pub path: [DVec3; 2],
+    /// Its unit surface normal.
+    pub normal: DVec3,
+    /// The times it moves between.
+    pub span: [f64; 2],
+    /// Its triangle (object and triangle index), which does not shadow it.
+    pub own: (u32, u32),
+}
+
 /// The camera of `source`'s shadow map: the spot's own view of its cone, or for a directional
 /// light a narrow perspective view from far along its direction, framing the triangle objects'
 /// bounds over the exposure (the plan makes them once, [`Plan::shadow_cameras`]).
@@ -295,9 +308,8 @@ impl ShadowMap {
         }
     }
 
-    /// For a receiver on triangle `own` (unit `normal`) moving uniformly from `p0` at t0 to `p1`
-    /// at t1 across texels, every time in (t0, t1) at which its visibility can change, appended to
-    /// `out`. This goes past Palmér's point sampling, following his future work: the path is
+    /// For a `receiver` moving uniformly across texels, every time in its span at which its
+    /// visibility can change, appended to `out`. This goes past Palmér's point sampling, following his future work: the path is
     /// intersected with the texel grid. A point moving linearly in world space crosses the line
     /// "texel coordinate = k" at a time that solves a linear equation, since the projection is a
     /// ratio of linear functions. Between two crossings the four texels of its bilinear lookup are
@@ -305,14 +317,12 @@ impl ShadowMap {
     /// between the cuts is then exact but for the bilinear weights, which move with the point.
     /// Returns false, adding nothing, when the path crosses more than
     /// [`MAX_RECEIVER_SAMPLES`] grid lines or leaves the light's view.
-    pub fn traced_breakpoints(
-        &self,
-        [p0, p1]: [DVec3; 2],
-        normal: DVec3,
-        [t0, t1]: [f64; 2],
-        own: (u32, u32),
-        out: &mut Vec<f64>,
-    ) -> bool {
+    pub fn traced_breakpoints(&self, receiver: &Receiver, out: &mut Vec<f64>) -> bool {
+        let Receiver {
+            path: [p0, p1],
+            span: [t0, t1],
+            ..
+        } = *receiver;
         let (Some((a, _)), Some((b, _))) = (self.locate(p0), self.locate(p1)) else {
             return false;
         };
@@ -359,28 +369,31 @@ impl ShadowMap {
         for pair in cuts.windows(2) {
             let [s0, s1] = [pair[0], pair[1]];
             if s1 > s0 {
-                self.breakpoints([point(s0), point(s1)], normal, [s0, s1], own, out);
+                let part = Receiver {
+                    path: [point(s0), point(s1)],
+                    span: [s0, s1],
+                    ..*receiver
+                };
+                self.breakpoints(&part, out);
             }
         }
         out.extend(cuts.iter().copied().filter(|&t| t > t0 && t < t1));
         true
     }
 
-    /// For a receiver on triangle `own` (unit `normal`) moving from `p0` at t0 to `p1` at t1
-    /// within one texel footprint, every time in (t0, t1) at which its visibility changes
-    /// (appended to `out`): in each of its four texels, the ends of the runs of time during which
+    /// For a `receiver` moving within one texel footprint, every time in its span at which its
+    /// visibility changes (appended to `out`): in each of its four texels, the ends of the runs of time during which
     /// some other triangle's occluder lies nearer than the receiver's depth limit. Within an
     /// occluder piece both depths are linear in time, so the part of it that occludes is one
     /// interval, found exactly; touching parts merge into runs, so a long train of occluder
     /// pieces (a surface turning over the texel) costs two cuts, not one per piece.
-    pub fn breakpoints(
-        &self,
-        [p0, p1]: [DVec3; 2],
-        normal: DVec3,
-        [t0, t1]: [f64; 2],
-        own: (u32, u32),
-        out: &mut Vec<f64>,
-    ) {
+    pub fn breakpoints(&self, receiver: &Receiver, out: &mut Vec<f64>) {
+        let Receiver {
+            path: [p0, p1],
+            normal,
+            span: [t0, t1],
+            own,
+        } = *receiver;
         let (Some((_, d0)), Some((_, d1)), Some((middle, _))) = (
             self.locate(p0),
             self.locate(p1),
