@@ -582,12 +582,19 @@ impl<'a> Prepared<'a> {
         };
         let mut cuts = vec![span[0], span[1]];
         let mut point_sampled = false;
-        if self.scene.lighting.is_lit() && !segment.still {
+        // Per light, whether the piece faces away from it all along: then its shadows change
+        // nothing here.
+        let mut turned_away = Vec::with_capacity(self.sources.len());
+        if self.scene.lighting.is_lit() {
             for source in &self.sources {
                 let facing = |t: f64| {
                     let (normal, p) = surface_at(t);
                     normal.dot(source.towards(p))
                 };
+                if segment.still {
+                    turned_away.push(facing(span[0]) <= 0.0);
+                    continue;
+                }
                 let mid = 0.5 * (span[0] + span[1]);
                 let [f0, fm, f1] = [facing(span[0]), facing(mid), facing(span[1])];
                 // The quadratic through the three values, in u = (t − t0)/(t1 − t0).
@@ -597,19 +604,27 @@ impl<'a> Prepared<'a> {
                     f0,
                 );
                 let (roots, n) = crate::math::quadratic_roots(a, b, c);
+                let before = cuts.len();
                 for &u in &roots[..n] {
                     if u > 0.0 && u < 1.0 {
                         cuts.push(span[0] + u * (span[1] - span[0]));
                     }
                 }
+                turned_away.push(cuts.len() == before && f0.max(fm).max(f1) <= 0.0);
             }
         }
-        // Lights whose shadows cannot change anything here: lit all along, by the occluders'
-        // nearest depths under the path.
-        let surely_lit: Vec<bool> = self
-            .shadows
-            .iter()
-            .map(|map| map.surely_lit(ends[0].1, ends[1].1, ends[0].0))
+        let receiver = Receiver {
+            path: [ends[0].1, ends[1].1],
+            normal: ends[0].0,
+            span,
+            own,
+        };
+        // Lights whose shadows cannot change anything here: turned away from, or lit all along.
+        let shadowed_away = (self.sources.iter().zip(&turned_away))
+            .filter(|(source, _)| source.shadows())
+            .map(|(_, &away)| away);
+        let surely_lit: Vec<bool> = (self.shadows.iter().zip(shadowed_away))
+            .map(|(map, away)| away || map.surely_lit(&receiver))
             .collect();
         for (map, _) in self
             .shadows
@@ -617,12 +632,6 @@ impl<'a> Prepared<'a> {
             .zip(&surely_lit)
             .filter(|(_, &lit)| !lit)
         {
-            let receiver = Receiver {
-                path: [ends[0].1, ends[1].1],
-                normal: ends[0].0,
-                span,
-                own,
-            };
             let sweep = map.sweep(receiver.path[0], receiver.path[1]);
             if sweep < 1.0 {
                 map.breakpoints(&receiver, &mut cuts);

@@ -35,6 +35,10 @@ const DIRECTIONAL_DISTANCE: f64 = 50.0;
 /// Most point samples of a receiver sweeping the shadow map, per visible piece.
 pub const MAX_RECEIVER_SAMPLES: usize = 256;
 
+/// Longest path, in texels, that [`ShadowMap::surely_lit`] walks (about three texels per texel of
+/// path are read; a longer path is point-sampled or traced).
+pub const MAX_SURELY_LIT_TEXELS: f64 = 1024.0;
+
 /// A receiver point moving linearly over part of the exposure, as the shadow cuts see it.
 #[derive(Clone, Copy, Debug)]
 pub struct Receiver {
@@ -153,11 +157,10 @@ pub struct Occluders {
 pub struct ShadowMap {
     occluders: Occluders,
     tiles_x: u32,
-    /// The nearest occluder depth of each texel over all time (+∞ where none), and its coarser
-    /// levels, each the minimum of 2 × 2 cells of the one before: a receiver whose depth limit
-    /// lies nearer than every occluder under its path is lit throughout, which one look at a
-    /// coarse level tells.
-    nearest: Vec<(u32, Vec<f32>)>,
+    /// The nearest occluder depth of each texel over all time (+∞ where none), row by row: a
+    /// receiver whose depth limit lies nearer than every occluder its path reads is lit
+    /// throughout.
+    nearest: Vec<f32>,
 }
 
 impl ShadowMap {
@@ -171,7 +174,7 @@ impl ShadowMap {
             nearest: Vec::new(),
         };
         let side = map.occluders.camera.width;
-        let mut level: Vec<f32> = (0..side * side)
+        map.nearest = (0..side * side)
             .map(|i| {
                 let (x, y) = (i64::from(i % side), i64::from(i / side));
                 map.texel(x, y)
@@ -180,45 +183,61 @@ impl ShadowMap {
                     .fold(f32::INFINITY, f32::min)
             })
             .collect();
-        let mut size = side;
-        loop {
-            let next_size = size.div_ceil(2);
-            let next: Vec<f32> = (0..next_size * next_size)
-                .map(|i| {
-                    let (x, y) = (i % next_size, i / next_size);
-                    let at = |dx: u32, dy: u32| {
-                        let (u, v) = ((2 * x + dx).min(size - 1), (2 * y + dy).min(size - 1));
-                        level[(v * size + u) as usize]
-                    };
-                    at(0, 0).min(at(1, 0)).min(at(0, 1)).min(at(1, 1))
-                })
-                .collect();
-            map.nearest.push((size, level));
-            if size == 1 {
-                break;
-            }
-            (size, level) = (next_size, next);
-        }
         map
     }
 
-    /// Whether a receiver moving from `p0` to `p1` is lit throughout: every occluder under its
-    /// path (and the texels its lookups reach) lies beyond its depth limit at both ends.
+    /// Whether `receiver` is lit throughout its span: in every texel its bilinear lookups can
+    /// read along its path, either every occluder of the exposure lies beyond its depth limit
+    /// (one look at the texel's nearest depth), or every other triangle's occluder during its span
+    /// does. The path's texels are walked row by row (a straight path in the world projects to a
+    /// straight one in the map); the depth limit is the larger of the path's ends'. A path
+    /// sweeping more than [`MAX_SURELY_LIT_TEXELS`] is not checked.
     #[must_use]
-    pub fn surely_lit(&self, p0: DVec3, p1: DVec3, normal: DVec3) -> bool {
+    pub fn surely_lit(&self, receiver: &Receiver) -> bool {
+        let Receiver {
+            path: [p0, p1],
+            normal,
+            span: [t0, t1],
+            own,
+        } = *receiver;
         let (Some((a, d0)), Some((b, d1))) = (self.locate(p0), self.locate(p1)) else {
             return false;
         };
+        if !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
+            return false;
+        }
         let limit = (d0 - self.bias(d0, p0, normal)).max(d1 - self.bias(d1, p1, normal));
-        let lo = a.min(b).floor() - DVec2::ONE;
-        let hi = a.max(b).ceil() + DVec2::ONE;
-        let span = (hi - lo).max_element().max(1.0);
-        let level = (span.log2().ceil() as usize).min(self.nearest.len() - 1);
-        let (size, cells) = &self.nearest[level];
-        let scale = f64::from(1u32 << level);
-        let cell = |v: f64| (v / scale).floor().clamp(0.0, f64::from(*size - 1)) as u32;
-        let (x0, x1, y0, y1) = (cell(lo.x), cell(hi.x), cell(lo.y), cell(hi.y));
-        (y0..=y1).all(|y| (x0..=x1).all(|x| f64::from(cells[(y * size + x) as usize]) >= limit))
+        let side = i64::from(self.occluders.camera.width);
+        let lit = |x: i64, y: i64| {
+            let index = (y * side + x) as usize;
+            f64::from(self.nearest[index]) >= limit
+                || self.texel(x, y).iter().all(|o| {
+                    o.id == own
+                        || o.piece.t[1] < t0
+                        || o.piece.t[0] > t1
+                        || o.piece
+                            .depth_at(o.piece.t[0].max(t0))
+                            .min(o.piece.depth_at(o.piece.t[1].min(t1)))
+                            >= limit
+                })
+        };
+        let (lo, hi) = if a.y <= b.y { (a, b) } else { (b, a) };
+        // A lookup at (x, y) reads texels ⌊x⌋, ⌊x⌋ + 1 of rows ⌊y⌋, ⌊y⌋ + 1: row r is read by the
+        // path's points with y in [r − 1, r + 1), all of them on a path along a row.
+        let x_at = |y: f64, whole: f64| {
+            let u = if hi.y > lo.y {
+                ((y - lo.y) / (hi.y - lo.y)).clamp(0.0, 1.0)
+            } else {
+                whole
+            };
+            lo.x + (hi.x - lo.x) * u
+        };
+        let rows = lo.y.floor() as i64..=hi.y.floor() as i64 + 1;
+        rows.filter(|row| (0..side).contains(row)).all(|row| {
+            let (xa, xb) = (x_at(row as f64 - 1.0, 0.0), x_at(row as f64 + 1.0, 1.0));
+            let (x0, x1) = (xa.min(xb).floor() as i64, xa.max(xb).floor() as i64 + 1);
+            (x0.max(0)..=x1.min(side - 1)).all(|x| lit(x, row))
+        })
     }
 
     /// Where world point `p` falls: continuous texel coordinates (texel centres at integers)
@@ -439,5 +458,86 @@ impl ShadowMap {
                 out.extend(done.into_iter().filter(|&t| t > t0 && t < t1));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 16 × 16 map looking down −z from the origin, with one occluder piece at depth 1 in
+    /// texel (8, 8) while t is in [0.6, 0.8], belonging to triangle (1, 0).
+    fn map_with_one_occluder() -> ShadowMap {
+        let camera = Camera::new(DVec3::ZERO, -DVec3::Z, DVec3::Y, 90.0, 16, 16)
+            .and_then(|c| c.with_spatial_samples(1))
+            .unwrap();
+        let occluder = Occluder {
+            piece: Interval {
+                t: [0.6, 0.8],
+                depth: [1.0, 1.0],
+                item: 0,
+            },
+            id: (1, 0),
+        };
+        let at = 8 * 16 + 8;
+        let starts = (0..=256u32).map(|i| u32::from(i > at)).collect();
+        ShadowMap::new(Occluders {
+            camera,
+            tiles: vec![(starts, vec![occluder])],
+        })
+    }
+
+    /// The world point that falls on texel coordinates (x, y) at depth 5.
+    fn point(map: &ShadowMap, x: f64, y: f64) -> DVec3 {
+        map.occluders.camera.ray(x + 0.5, y + 0.5) * 5.0
+    }
+
+    fn receiver(path: [DVec3; 2], span: [f64; 2], own: (u32, u32)) -> Receiver {
+        Receiver {
+            path,
+            normal: DVec3::Z,
+            span,
+            own,
+        }
+    }
+
+    #[test]
+    fn a_still_receiver_is_surely_lit_only_when_no_other_triangle_occludes_it_in_its_span() {
+        let map = map_with_one_occluder();
+        let p = point(&map, 8.3, 8.3);
+        assert_eq!(
+            map.locate(p).map(|(at, _)| at.floor()),
+            Some(DVec2::new(8.0, 8.0))
+        );
+        assert!(!map.surely_lit(&receiver([p, p], [0.0, 1.0], (0, 0))));
+        assert!(!map.surely_lit(&receiver([p, p], [0.7, 0.75], (0, 0))));
+        // Before the occluder arrives, or shadowed only by its own triangle.
+        assert!(map.surely_lit(&receiver([p, p], [0.0, 0.5], (0, 0))));
+        assert!(map.surely_lit(&receiver([p, p], [0.0, 1.0], (1, 0))));
+        // Bilinear lookups from texel (6.5, 6.5) read up to texel 7: not 8.
+        let beside = point(&map, 6.5, 6.5);
+        assert!(map.surely_lit(&receiver([beside, beside], [0.0, 1.0], (0, 0))));
+        let next = point(&map, 7.5, 7.5);
+        assert!(!map.surely_lit(&receiver([next, next], [0.0, 1.0], (0, 0))));
+    }
+
+    #[test]
+    fn a_moving_receiver_is_checked_along_its_whole_path() {
+        let map = map_with_one_occluder();
+        // Along a row, along a column and diagonally across the occluded texel.
+        for (from, to) in [
+            ((1.2, 8.4), (14.6, 8.4)),
+            ((8.4, 14.6), (8.4, 1.2)),
+            ((2.3, 2.1), (13.9, 14.2)),
+        ] {
+            let path = [point(&map, from.0, from.1), point(&map, to.0, to.1)];
+            assert!(
+                !map.surely_lit(&receiver(path, [0.0, 1.0], (0, 0))),
+                "{from:?}"
+            );
+        }
+        // A path along row 3 reads rows 3 and 4 only.
+        let path = [point(&map, 1.2, 3.4), point(&map, 14.6, 3.4)];
+        assert!(map.surely_lit(&receiver(path, [0.0, 1.0], (0, 0))));
     }
 }
