@@ -11,7 +11,7 @@ use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
-use crate::render::triangles::shadow::light_camera;
+use crate::render::triangles::shadow::{light_camera, MAX_SHADOWED_LIGHTS};
 use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
 use crate::scene::camera::Camera;
 use crate::scene::{Object, Scene, TriangleMesh};
@@ -257,6 +257,15 @@ impl<'a> Plan<'a> {
                 "triangles",
                 format!(
                     "{items} triangle items (triangles × sub-segments) are more than the {MAX_TRIANGLE_ITEMS} one render may hold: simplify the mesh, or raise --tolerance for fewer sub-segments"
+                ),
+            ));
+        }
+        let shadowed = scene.lighting.sources().filter(|s| s.shadows()).count();
+        if plan.any_triangles() && shadowed > MAX_SHADOWED_LIGHTS {
+            return Err(Error::invalid(
+                "lighting",
+                format!(
+                    "{shadowed} lights cast shadows, more than the {MAX_SHADOWED_LIGHTS} a scene may have: set shadows = false on the others"
                 ),
             ));
         }

@@ -455,3 +455,36 @@ fn a_floor_moving_in_depth_under_a_still_occluder_is_shadowed_for_the_closed_for
         );
     }
 }
+
+#[test]
+fn more_shadowed_lights_than_the_cap_are_refused_by_name() {
+    use streak::render::MAX_SHADOWED_LIGHTS;
+    let lights = |count: usize| {
+        (0..count)
+            .map(|k| {
+                Light::new(DVec3::new(k as f64, 1.0, 1.0), 0.1)
+                    .unwrap()
+                    .with_shadows(true)
+            })
+            .collect::<Vec<_>>()
+    };
+    let with = |count| {
+        scene(9, 1)
+            .with_lighting(Lighting::new(0.1, lights(count)).unwrap())
+            .with_object(object(
+                "floor",
+                &square(2.0),
+                [1.0; 3],
+                &[(0.0, at(0.0, 0.0, 0.0))],
+            ))
+    };
+    assert!(Plan::new(&with(MAX_SHADOWED_LIGHTS), &Method::ANALYTIC).is_ok());
+    let Err(error) = Plan::new(&with(MAX_SHADOWED_LIGHTS + 1), &Method::ANALYTIC) else {
+        panic!("{} shadowed lights accepted", MAX_SHADOWED_LIGHTS + 1);
+    };
+    let error = error.to_string();
+    assert!(
+        error.contains("lighting") && error.contains("cast shadows"),
+        "{error}"
+    );
+}

@@ -551,34 +551,39 @@ fn tile_pass<const B: usize, T: Send>(
     });
     // A tile no footprint reaches is clear, without setting up and finishing its pixel states.
     let clear = PixelState::<B>::EMPTY.finish(bins);
-    bands.enumerate().for_each(|(ty, mut band)| {
-        let mut scratch = TileScratch::default();
-        let band_start = ty * band_len(target.width);
-        for tile in grid.row(ty) {
-            let [x0, y0, x1, y1] = grid.pixels(tile);
-            let list = lists.list(tile);
-            let pixels = if list.is_empty() {
-                &[]
-            } else {
-                render_tile(
-                    footprints,
-                    list,
-                    [x0, y0, x1, y1],
-                    target,
-                    bins,
-                    &mut scratch,
-                )
-            };
-            let w = (x1 - x0) as usize;
-            for r in 0..(y1 - y0) as usize {
-                let start = r * width + x0 as usize;
-                for i in 0..w {
-                    let finished = pixels.get(r * w + i).map_or(clear, |p| p.finish(bins));
-                    write(&mut band, start + i, band_start + start + i, finished);
+    // One task per band: rayon's adaptive split would otherwise leave a thread idle when the
+    // work gathers in a few bands.
+    bands
+        .with_max_len(1)
+        .enumerate()
+        .for_each(|(ty, mut band)| {
+            let mut scratch = TileScratch::default();
+            let band_start = ty * band_len(target.width);
+            for tile in grid.row(ty) {
+                let [x0, y0, x1, y1] = grid.pixels(tile);
+                let list = lists.list(tile);
+                let pixels = if list.is_empty() {
+                    &[]
+                } else {
+                    render_tile(
+                        footprints,
+                        list,
+                        [x0, y0, x1, y1],
+                        target,
+                        bins,
+                        &mut scratch,
+                    )
+                };
+                let w = (x1 - x0) as usize;
+                for r in 0..(y1 - y0) as usize {
+                    let start = r * width + x0 as usize;
+                    for i in 0..w {
+                        let finished = pixels.get(r * w + i).map_or(clear, |p| p.finish(bins));
+                        write(&mut band, start + i, band_start + start + i, finished);
+                    }
                 }
             }
-        }
-    });
+        });
     RasterStats {
         footprints: footprints.len(),
         tile_entries: lists.entries(),

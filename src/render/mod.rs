@@ -33,7 +33,7 @@ pub(crate) use hint::trail_window;
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS};
 pub use reference::ReferenceStats;
-pub use triangles::{Exposure, TriangleStats, MAX_TRIANGLE_ITEMS};
+pub use triangles::{Exposure, TriangleStats, MAX_SHADOWED_LIGHTS, MAX_TRIANGLE_ITEMS};
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;

@@ -242,6 +242,7 @@ pub(super) fn render(
             });
         let results: Vec<TileResult> = (0..grid.count())
             .into_par_iter()
+            .with_max_len(1)
             .map(|tile| {
                 let work = TileWork {
                     kernels: &kernels,

@@ -24,6 +24,7 @@ use crate::raster::{TileGrid, TileLists};
 use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, TriangleMesh};
 use intervals::{resolve, Interval, ResolveScratch};
+pub use shadow::MAX_SHADOWED_LIGHTS;
 use shadow::{Occluder, Occluders, Receiver, ShadowMap};
 use tct::{EdgeFunctions, MovingTriangle};
 
@@ -45,6 +46,29 @@ const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
     (0.0, 8.0 / 9.0),
     (0.774_596_669_241_483_4, 5.0 / 9.0),
 ];
+
+/// Cut `span` where a surface turns towards or away from a light: N·L, given by `facing` at a
+/// time, is quadratic in time (Palmér eq. 2.5) and taken through its values at the span's ends
+/// and middle; its roots inside the span are appended to `cuts`. Returns whether the surface
+/// faces away all along.
+fn cut_where_turning(facing: impl Fn(f64) -> f64, span: [f64; 2], cuts: &mut Vec<f64>) -> bool {
+    let mid = 0.5 * (span[0] + span[1]);
+    let [f0, fm, f1] = [facing(span[0]), facing(mid), facing(span[1])];
+    // The quadratic through the three values, in u = (t − t0)/(t1 − t0).
+    let (a, b, c) = (
+        2.0 * f0 - 4.0 * fm + 2.0 * f1,
+        -3.0 * f0 + 4.0 * fm - f1,
+        f0,
+    );
+    let (roots, n) = crate::math::quadratic_roots(a, b, c);
+    let before = cuts.len();
+    for &u in &roots[..n] {
+        if u > 0.0 && u < 1.0 {
+            cuts.push(span[0] + u * (span[1] - span[0]));
+        }
+    }
+    cuts.len() == before && f0.max(fm).max(f1) <= 0.0
+}
 
 /// What drawing triangles did, for `--explain`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -384,6 +408,7 @@ impl<'a> Prepared<'a> {
         let mut hidden_beyond = vec![f32::INFINITY; width as usize * height as usize];
         let stats: Vec<TriangleStats> = (image.pixels.par_chunks_mut(band))
             .zip(hidden_beyond.par_chunks_mut(band))
+            .with_max_len(1)
             .enumerate()
             .map(|(ty, (pixels, hidden))| {
                 let mut scratch = Scratch::default();
@@ -512,6 +537,7 @@ impl<'a> Prepared<'a> {
                     lists,
                     resolving,
                     visible,
+                    cuts,
                     ..
                 } = scratch;
                 visible.clear();
@@ -525,7 +551,7 @@ impl<'a> Prepared<'a> {
                     if !(mass > 0.0) {
                         continue;
                     }
-                    let mean = self.piece_colour(piece, d);
+                    let mean = self.piece_colour(piece, d, cuts);
                     for c in 0..3 {
                         colour[c] += mass * mean[c];
                     }
@@ -553,7 +579,7 @@ impl<'a> Prepared<'a> {
     /// max(2|pₑ − pₛ|, 5) equal cuts, or with `Receivers::Traced` the cuts of
     /// [`ShadowMap::traced_breakpoints`]); visibility is taken at each cut piece's middle and the
     /// rest integrated at three Gauss–Legendre times.
-    fn piece_colour(&self, piece: &Interval, d: DVec3) -> [f64; 3] {
+    fn piece_colour(&self, piece: &Interval, d: DVec3, cuts: &mut Vec<f64>) -> [f64; 3] {
         let item = &self.items[piece.item as usize];
         let triangle = self.corners(item);
         let segment = self.segment(item);
@@ -568,7 +594,12 @@ impl<'a> Prepared<'a> {
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
-        let ends = [span[0], span[1]].map(|t| self.surface(item, &triangle, d, fraction(t)));
+        let start = self.surface(item, &triangle, d, fraction(span[0]));
+        let ends = if segment.still {
+            [start; 2]
+        } else {
+            [start, self.surface(item, &triangle, d, fraction(span[1]))]
+        };
         let surface_at = |t: f64| {
             let u = if span[1] > span[0] {
                 (t - span[0]) / (span[1] - span[0])
@@ -580,37 +611,28 @@ impl<'a> Prepared<'a> {
                 ends[0].1.lerp(ends[1].1, u),
             )
         };
-        let mut cuts = vec![span[0], span[1]];
+        cuts.clear();
+        cuts.extend(span);
         let mut point_sampled = false;
         // Per light, whether the piece faces away from it all along: then its shadows change
         // nothing here.
-        let mut turned_away = Vec::with_capacity(self.sources.len());
+        let mut turned_away = [false; MAX_SHADOWED_LIGHTS];
         if self.scene.lighting.is_lit() {
+            let mut shadowed = 0;
             for source in &self.sources {
                 let facing = |t: f64| {
                     let (normal, p) = surface_at(t);
                     normal.dot(source.towards(p))
                 };
-                if segment.still {
-                    turned_away.push(facing(span[0]) <= 0.0);
-                    continue;
+                let away = if segment.still {
+                    facing(span[0]) <= 0.0
+                } else {
+                    cut_where_turning(facing, span, cuts)
+                };
+                if source.shadows() {
+                    turned_away[shadowed] = away;
+                    shadowed += 1;
                 }
-                let mid = 0.5 * (span[0] + span[1]);
-                let [f0, fm, f1] = [facing(span[0]), facing(mid), facing(span[1])];
-                // The quadratic through the three values, in u = (t − t0)/(t1 − t0).
-                let (a, b, c) = (
-                    2.0 * f0 - 4.0 * fm + 2.0 * f1,
-                    -3.0 * f0 + 4.0 * fm - f1,
-                    f0,
-                );
-                let (roots, n) = crate::math::quadratic_roots(a, b, c);
-                let before = cuts.len();
-                for &u in &roots[..n] {
-                    if u > 0.0 && u < 1.0 {
-                        cuts.push(span[0] + u * (span[1] - span[0]));
-                    }
-                }
-                turned_away.push(cuts.len() == before && f0.max(fm).max(f1) <= 0.0);
             }
         }
         let receiver = Receiver {
@@ -620,12 +642,10 @@ impl<'a> Prepared<'a> {
             own,
         };
         // Lights whose shadows cannot change anything here: turned away from, or lit all along.
-        let shadowed_away = (self.sources.iter().zip(&turned_away))
-            .filter(|(source, _)| source.shadows())
-            .map(|(_, &away)| away);
-        let surely_lit: Vec<bool> = (self.shadows.iter().zip(shadowed_away))
-            .map(|(map, away)| away || map.surely_lit(&receiver))
-            .collect();
+        let mut surely_lit = [true; MAX_SHADOWED_LIGHTS];
+        for ((lit, map), away) in surely_lit.iter_mut().zip(&self.shadows).zip(turned_away) {
+            *lit = away || map.surely_lit(&receiver);
+        }
         for (map, _) in self
             .shadows
             .iter()
@@ -634,9 +654,9 @@ impl<'a> Prepared<'a> {
         {
             let sweep = map.sweep(receiver.path[0], receiver.path[1]);
             if sweep < 1.0 {
-                map.breakpoints(&receiver, &mut cuts);
+                map.breakpoints(&receiver, cuts);
             } else if !(self.receivers == Receivers::Traced
-                && map.traced_breakpoints(&receiver, &mut cuts))
+                && map.traced_breakpoints(&receiver, cuts))
             {
                 point_sampled = true;
                 let count = (2.0 * sweep)
@@ -649,19 +669,18 @@ impl<'a> Prepared<'a> {
         }
         cuts.sort_unstable_by(f64::total_cmp);
         cuts.dedup();
-        let visibility_at = |t: f64| -> Vec<f64> {
-            let (normal, p) = surface_at(t);
-            self.shadows
-                .iter()
-                .zip(&surely_lit)
-                .map(|(map, &lit)| {
-                    if lit {
-                        1.0
-                    } else {
-                        map.visibility(p, normal, t, own)
+        let maps = self.shadows.len();
+        let visibility_at = |t: f64| {
+            let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
+            if !surely_lit[..maps].iter().all(|&lit| lit) {
+                let (normal, p) = surface_at(t);
+                for ((v, map), lit) in visibility.iter_mut().zip(&self.shadows).zip(surely_lit) {
+                    if !lit {
+                        *v = map.visibility(p, normal, t, own);
                     }
-                })
-                .collect()
+                }
+            }
+            visibility
         };
         if segment.still {
             // Nothing but the shadows changes: shade once, weigh each cut piece's light by its
@@ -671,13 +690,17 @@ impl<'a> Prepared<'a> {
             let (mut sum, mut mass) = (0.0, 0.0);
             for pair in cuts.windows(2) {
                 let m = self.scene.shutter.moments(pair[0], pair[1]).mass;
-                sum += m * self.irradiance(normal, p, &visibility_at(0.5 * (pair[0] + pair[1])));
+                sum += m * self.irradiance(
+                    normal,
+                    p,
+                    &visibility_at(0.5 * (pair[0] + pair[1]))[..maps],
+                );
                 mass += m;
             }
             let irradiance = if mass > 0.0 {
                 sum / mass
             } else {
-                self.irradiance(normal, p, &visibility_at(span[0]))
+                self.irradiance(normal, p, &visibility_at(span[0])[..maps])
             };
             return albedo.map(|c| c * irradiance);
         }
@@ -692,7 +715,7 @@ impl<'a> Prepared<'a> {
                 let t = 0.5 * (pair[0] + pair[1]);
                 let w = (pair[1] - pair[0]) * self.scene.shutter.weight(t).max(1e-300);
                 let (normal, p) = surface_at(t);
-                sum += w * self.irradiance(normal, p, &visibility_at(t));
+                sum += w * self.irradiance(normal, p, &visibility_at(t)[..maps]);
                 weight += w;
             }
             let irradiance = if weight > 0.0 { sum / weight } else { 0.0 };
@@ -712,7 +735,7 @@ impl<'a> Prepared<'a> {
                 let t = centre + half * node;
                 let w = w * half * self.scene.shutter.weight(t).max(1e-300);
                 let (normal, p) = surface_at(t);
-                let irradiance = self.irradiance(normal, p, &visibility);
+                let irradiance = self.irradiance(normal, p, &visibility[..maps]);
                 for c in 0..3 {
                     sum[c] += w * albedo[c] * irradiance;
                 }
@@ -752,12 +775,11 @@ impl<'a> Prepared<'a> {
         }
         let (normal, p) = self.surface(item, triangle, d, s);
         let own = (item.object, item.triangle);
-        let visibility: Vec<f64> = self
-            .shadows
-            .iter()
-            .map(|map| map.visibility(p, normal, t, own))
-            .collect();
-        let irradiance = self.irradiance(normal, p, &visibility);
+        let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
+        for (v, map) in visibility.iter_mut().zip(&self.shadows) {
+            *v = map.visibility(p, normal, t, own);
+        }
+        let irradiance = self.irradiance(normal, p, &visibility[..self.shadows.len()]);
         albedo.map(|c| c * irradiance)
     }
 
@@ -805,6 +827,7 @@ impl<'a> Prepared<'a> {
         let offsets = camera.sample_offsets();
         let tiles = (0..grid.count())
             .into_par_iter()
+            .with_max_len(1)
             .map_init(
                 || (Scratch::default(), TriangleStats::default()),
                 |(scratch, stats), tile| {
@@ -866,6 +889,8 @@ struct Scratch {
     visible: Vec<Interval>,
     covered: Vec<[f64; 2]>,
     knots: Vec<[f64; 2]>,
+    /// The times a visible piece is cut at for shading.
+    cuts: Vec<f64>,
     /// The finished pixels: colour and hidden-beyond depth.
     pixels: Vec<([f32; 3], f32)>,
 }

@@ -35,6 +35,10 @@ const DIRECTIONAL_DISTANCE: f64 = 50.0;
 /// Most point samples of a receiver sweeping the shadow map, per visible piece.
 pub const MAX_RECEIVER_SAMPLES: usize = 256;
 
+/// Most lights that cast shadows in one scene: each has a shadow map of up to
+/// [`crate::scene::MAX_SHADOW_MAP`]² texels' interval lists.
+pub const MAX_SHADOWED_LIGHTS: usize = 8;
+
 /// Longest path, in texels, that [`ShadowMap::surely_lit`] walks (about three texels per texel of
 /// path are read; a longer path is point-sampled or traced).
 pub const MAX_SURELY_LIT_TEXELS: f64 = 1024.0;
