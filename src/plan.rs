@@ -260,16 +260,16 @@ impl<'a> Plan<'a> {
                 ),
             ));
         }
-        let shadowed = scene.lighting.sources().filter(|s| s.shadows()).count();
-        if plan.any_triangles() && shadowed > MAX_SHADOWED_LIGHTS {
-            return Err(Error::invalid(
-                "lighting",
-                format!(
-                    "{shadowed} lights cast shadows, more than the {MAX_SHADOWED_LIGHTS} a scene may have: set shadows = false on the others"
-                ),
-            ));
-        }
         if plan.any_triangles() {
+            let shadowed = scene.lighting.sources().filter(|s| s.shadows()).count();
+            if shadowed > MAX_SHADOWED_LIGHTS {
+                return Err(Error::invalid(
+                    "lighting",
+                    format!(
+                        "{shadowed} lights cast shadows, more than the {MAX_SHADOWED_LIGHTS} a scene may have: set shadows = false on the others"
+                    ),
+                ));
+            }
             plan.shadow_cameras = scene
                 .lighting
                 .sources()
@@ -790,9 +790,8 @@ fn mesh_lod(
     }
     // Drawn as surfels, a simplified mesh is resampled in one colour: a mesh of several keeps
     // its own surfels, so it is not simplified at all.
-    let one_colour = |colours: &[[f32; 3]]| colours.windows(2).all(|w| w[0] == w[1]);
     let as_triangles = draws_triangles(method, object);
-    if !as_triangles && !one_colour(&mesh.colours) {
+    if !as_triangles && !mesh.colours.windows(2).all(|w| w[0] == w[1]) {
         return Ok((
             MeshLod::Full("several colours, drawn as its own surfels"),
             None,
@@ -810,7 +809,8 @@ fn mesh_lod(
         return Ok((MeshLod::Full("the simplifier could not take it"), None));
     };
     let simplified = &shared.0;
-    let surfels = if as_triangles || !one_colour(&simplified.colours) {
+    // The simplifier interpolates colours, so one colour stays exactly one.
+    let surfels = if as_triangles {
         None
     } else {
         // As many surfels per face as the full mesh had.

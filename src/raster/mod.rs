@@ -560,19 +560,12 @@ fn tile_pass<const B: usize, T: Send>(
             let mut scratch = TileScratch::default();
             let band_start = ty * band_len(target.width);
             for tile in grid.row(ty) {
-                let [x0, y0, x1, y1] = grid.pixels(tile);
+                let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
                 let list = lists.list(tile);
                 let pixels = if list.is_empty() {
                     &[]
                 } else {
-                    render_tile(
-                        footprints,
-                        list,
-                        [x0, y0, x1, y1],
-                        target,
-                        bins,
-                        &mut scratch,
-                    )
+                    render_tile(footprints, list, bounds, target, bins, &mut scratch)
                 };
                 let w = (x1 - x0) as usize;
                 for r in 0..(y1 - y0) as usize {

@@ -173,16 +173,16 @@ pub(crate) enum Compaction {
 
 /// The time bins [`compact`] merges within, and that `kernel3d` resolves one at a time:
 /// consecutive sub-frames, at most [`MAX_TIME_BINS`].
-pub(crate) struct TimeBins {
+pub(crate) struct SubFrameBins {
     /// Each bin's shutter-mass span.
     spans: Vec<[f64; 2]>,
     /// The first sub-frame of each bin, then the number of sub-frames.
     starts: Vec<usize>,
 }
 
-impl TimeBins {
+impl SubFrameBins {
     /// Bins of the sub-frames `windows` (at least one).
-    pub fn new(windows: &[[f64; 2]]) -> TimeBins {
+    pub fn new(windows: &[[f64; 2]]) -> SubFrameBins {
         let bins = windows.len().clamp(1, MAX_TIME_BINS);
         let mut spans = vec![[f64::INFINITY, f64::NEG_INFINITY]; bins];
         let mut starts = vec![windows.len(); bins + 1];
@@ -193,7 +193,7 @@ impl TimeBins {
             span[1] = span[1].max(window[1]);
             starts[b] = w;
         }
-        TimeBins { spans, starts }
+        SubFrameBins { spans, starts }
     }
 
     /// Number of bins.
@@ -237,7 +237,7 @@ impl TimeBins {
 /// When that leaves too many, the share is doubled until it does not (at most [`MAX_WIDENINGS`]
 /// times, then each bin is one surface); beyond the whole tolerance the outcome is
 /// [`Compaction::Widened`].
-pub(crate) fn compact(fragments: &mut Vec<Fragment>, bins: &TimeBins) -> Compaction {
+pub(crate) fn compact(fragments: &mut Vec<Fragment>, bins: &SubFrameBins) -> Compaction {
     let mut outcome = Compaction::Surfaces;
     let mut widen = SURFACE_SHARE;
     let mut merged = Vec::with_capacity(fragments.len());
@@ -760,7 +760,7 @@ mod tests {
         }
         let before = fragments.clone();
         assert_eq!(
-            compact(&mut fragments, &TimeBins::new(&windows)),
+            compact(&mut fragments, &SubFrameBins::new(&windows)),
             Compaction::Surfaces
         );
         // One fragment per surface and sub-frame.
@@ -842,7 +842,7 @@ mod tests {
         let mut kernel = flat([0.1, 0.9], 0.6, 1.0, [1.0; 3], 0);
         kernel.depth = [1.0, 1.002];
         let mut table = vec![kernel, flat([0.2, 0.7], 0.3, 1.001, [1.0; 3], 1)];
-        compact(&mut table, &TimeBins::new(&[[0.0, 1.0]]));
+        compact(&mut table, &SubFrameBins::new(&[[0.0, 1.0]]));
         assert!(matches!(
             table[..],
             [Fragment {
@@ -875,7 +875,7 @@ mod tests {
             .collect();
         let total = weight(&fragments, [0.0, 1.0]);
         assert_eq!(
-            compact(&mut fragments, &TimeBins::new(&windows)),
+            compact(&mut fragments, &SubFrameBins::new(&windows)),
             Compaction::Widened
         );
         assert!(fragments.len() <= MAX_FRAGMENTS_PER_PIXEL / 2);

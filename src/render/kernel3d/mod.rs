@@ -22,7 +22,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::project::{Cull, Culled, Instant};
 use crate::raster::{Rejection, TileGrid, TileLists, TILE_PX};
 use crate::render::abuffer::{
-    compact, resolve_approximate, resolve_exact, Compaction, Fragment, Resolved, TimeBins,
+    compact, resolve_approximate, resolve_exact, Compaction, Fragment, Resolved, SubFrameBins,
     MAX_FRAGMENTS_PER_PIXEL, TABLE_PARTS,
 };
 use crate::scene::{Object, Scene};
@@ -453,7 +453,7 @@ struct TileWork<'a> {
 /// fragments in the tile, the most on one pixel, and the most held at once.
 ///
 /// Fragments are made and resolved one row of the tile at a time, and within a row one time bin
-/// of sub-frames at a time ([`TimeBins`]): a moving kernel's fragments lie within its sub-frame,
+/// of sub-frames at a time ([`SubFrameBins`]): a moving kernel's fragments lie within its sub-frame,
 /// so each bin's resolve is exact over its own part of the exposure and the parts add up, as the
 /// passes do. Kernels spanning the pass (still objects') leave fragments that are made once per
 /// row and clipped to each bin. A worker holds at most one row's: [`TILE_PX`] pixels of at most
@@ -476,7 +476,7 @@ fn resolve_tile(
             -1.0,
         )
     };
-    let bins = TimeBins::new(windows);
+    let bins = SubFrameBins::new(windows);
     // The tile's kernels by the bin holding them (those spanning the pass last), in kernel order
     // within each.
     let bin_of: Vec<usize> = (work.list.iter())
@@ -500,12 +500,12 @@ fn resolve_tile(
         let end = prepared.partition_point(|p| p.0 <= bin);
         &prepared[start..end]
     };
-    let each_bin: Vec<TimeBins> = (0..bins.len())
-        .map(|b| TimeBins::new(&[bins.span(b)]))
+    let each_bin: Vec<SubFrameBins> = (0..bins.len())
+        .map(|b| SubFrameBins::new(&[bins.span(b)]))
         .collect();
     let pass = [bins.span(0)[0], bins.span(bins.len() - 1)[1]];
     let exposure = pass[1] - pass[0];
-    let pass = TimeBins::new(&[pass]);
+    let pass = SubFrameBins::new(&[pass]);
     let mut out = TileResult {
         resolved: Vec::with_capacity(w * (y1 - y0) as usize),
         ..TileResult::default()
@@ -519,7 +519,7 @@ fn resolve_tile(
     let make = |kernels: &[(usize, Prepared, [u32; 4])],
                 y: u32,
                 lists: &mut [(Vec<Fragment>, Option<Compaction>)],
-                bins: &TimeBins,
+                bins: &SubFrameBins,
                 out: &mut TileResult| {
         for (_, kernel, [bx0, by0, bx1, by1]) in kernels {
             if !(*by0..*by1).contains(&y) {
@@ -584,7 +584,7 @@ fn resolve_tile(
 fn push_capped(
     (list, merged): &mut (Vec<Fragment>, Option<Compaction>),
     f: Fragment,
-    bins: &TimeBins,
+    bins: &SubFrameBins,
     out: &mut TileResult,
 ) {
     list.push(f);

@@ -614,11 +614,17 @@ impl<'a> Prepared<'a> {
         cuts.clear();
         cuts.extend(span);
         let mut point_sampled = false;
-        // Per light, whether the piece faces away from it all along: then its shadows change
-        // nothing here.
-        let mut turned_away = [false; MAX_SHADOWED_LIGHTS];
+        let receiver = Receiver {
+            path: [ends[0].1, ends[1].1],
+            normal: ends[0].0,
+            span,
+            own,
+        };
+        // Per shadow map, whether its shadows cannot change anything here: the piece faces away
+        // from its light all along, or is lit all along.
+        let mut surely_lit = [true; MAX_SHADOWED_LIGHTS];
         if self.scene.lighting.is_lit() {
-            let mut shadowed = 0;
+            let mut maps = self.shadows.iter().zip(&mut surely_lit);
             for source in &self.sources {
                 let facing = |t: f64| {
                     let (normal, p) = surface_at(t);
@@ -630,21 +636,11 @@ impl<'a> Prepared<'a> {
                     cut_where_turning(facing, span, cuts)
                 };
                 if source.shadows() {
-                    turned_away[shadowed] = away;
-                    shadowed += 1;
+                    if let Some((map, lit)) = maps.next() {
+                        *lit = away || map.surely_lit(&receiver);
+                    }
                 }
             }
-        }
-        let receiver = Receiver {
-            path: [ends[0].1, ends[1].1],
-            normal: ends[0].0,
-            span,
-            own,
-        };
-        // Lights whose shadows cannot change anything here: turned away from, or lit all along.
-        let mut surely_lit = [true; MAX_SHADOWED_LIGHTS];
-        for ((lit, map), away) in surely_lit.iter_mut().zip(&self.shadows).zip(turned_away) {
-            *lit = away || map.surely_lit(&receiver);
         }
         for (map, _) in self
             .shadows
@@ -669,10 +665,11 @@ impl<'a> Prepared<'a> {
         }
         cuts.sort_unstable_by(f64::total_cmp);
         cuts.dedup();
-        let maps = self.shadows.len();
+        // The share of each shadow map's light reaching the receiver at t, in the order
+        // `irradiance` reads them (entries past the last map stay 1).
         let visibility_at = |t: f64| {
             let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
-            if !surely_lit[..maps].iter().all(|&lit| lit) {
+            if !surely_lit.iter().all(|&lit| lit) {
                 let (normal, p) = surface_at(t);
                 for ((v, map), lit) in visibility.iter_mut().zip(&self.shadows).zip(surely_lit) {
                     if !lit {
@@ -690,17 +687,13 @@ impl<'a> Prepared<'a> {
             let (mut sum, mut mass) = (0.0, 0.0);
             for pair in cuts.windows(2) {
                 let m = self.scene.shutter.moments(pair[0], pair[1]).mass;
-                sum += m * self.irradiance(
-                    normal,
-                    p,
-                    &visibility_at(0.5 * (pair[0] + pair[1]))[..maps],
-                );
+                sum += m * self.irradiance(normal, p, &visibility_at(0.5 * (pair[0] + pair[1])));
                 mass += m;
             }
             let irradiance = if mass > 0.0 {
                 sum / mass
             } else {
-                self.irradiance(normal, p, &visibility_at(span[0])[..maps])
+                self.irradiance(normal, p, &visibility_at(span[0]))
             };
             return albedo.map(|c| c * irradiance);
         }
@@ -715,7 +708,7 @@ impl<'a> Prepared<'a> {
                 let t = 0.5 * (pair[0] + pair[1]);
                 let w = (pair[1] - pair[0]) * self.scene.shutter.weight(t).max(1e-300);
                 let (normal, p) = surface_at(t);
-                sum += w * self.irradiance(normal, p, &visibility_at(t)[..maps]);
+                sum += w * self.irradiance(normal, p, &visibility_at(t));
                 weight += w;
             }
             let irradiance = if weight > 0.0 { sum / weight } else { 0.0 };
@@ -735,7 +728,7 @@ impl<'a> Prepared<'a> {
                 let t = centre + half * node;
                 let w = w * half * self.scene.shutter.weight(t).max(1e-300);
                 let (normal, p) = surface_at(t);
-                let irradiance = self.irradiance(normal, p, &visibility[..maps]);
+                let irradiance = self.irradiance(normal, p, &visibility);
                 for c in 0..3 {
                     sum[c] += w * albedo[c] * irradiance;
                 }
@@ -779,7 +772,7 @@ impl<'a> Prepared<'a> {
         for (v, map) in visibility.iter_mut().zip(&self.shadows) {
             *v = map.visibility(p, normal, t, own);
         }
-        let irradiance = self.irradiance(normal, p, &visibility[..self.shadows.len()]);
+        let irradiance = self.irradiance(normal, p, &visibility);
         albedo.map(|c| c * irradiance)
     }
 

@@ -332,14 +332,15 @@ impl ShadowMap {
     }
 
     /// For a `receiver` moving uniformly across texels, every time in its span at which its
-    /// visibility can change, appended to `out`. This goes past Palmér's point sampling, following his future work: the path is
-    /// intersected with the texel grid. A point moving linearly in world space crosses the line
-    /// "texel coordinate = k" at a time that solves a linear equation, since the projection is a
-    /// ratio of linear functions. Between two crossings the four texels of its bilinear lookup are
-    /// fixed, and [`ShadowMap::breakpoints`] finds their occluded runs exactly. Visibility taken
-    /// between the cuts is then exact but for the bilinear weights, which move with the point.
-    /// Returns false, adding nothing, when the path crosses more than
-    /// [`MAX_RECEIVER_SAMPLES`] grid lines or leaves the light's view.
+    /// visibility can change, appended to `out`. This goes past Palmér's point sampling,
+    /// following his future work: the path is intersected with the texel grid. A point moving
+    /// linearly in world space crosses the line "texel coordinate = k" at a time that solves a
+    /// linear equation, since the projection is a ratio of linear functions. Between two
+    /// crossings the four texels of its bilinear lookup are fixed, and
+    /// [`ShadowMap::breakpoints`] finds their occluded runs exactly. Visibility taken between the
+    /// cuts is then exact but for the bilinear weights, which move with the point. Returns
+    /// false, adding nothing, when the path crosses more than [`MAX_RECEIVER_SAMPLES`] grid lines
+    /// or leaves the light's view.
     pub fn traced_breakpoints(&self, receiver: &Receiver, out: &mut Vec<f64>) -> bool {
         let Receiver {
             path: [p0, p1],
@@ -405,8 +406,9 @@ impl ShadowMap {
     }
 
     /// For a `receiver` moving within one texel footprint, every time in its span at which its
-    /// visibility changes (appended to `out`): in each of its four texels, the ends of the runs of time during which
-    /// some other triangle's occluder lies nearer than the receiver's depth limit. Within an
+    /// visibility changes (appended to `out`): in each of its four texels, the ends of the runs
+    /// of time during which some other triangle's occluder lies nearer than the receiver's depth
+    /// limit. Within an
     /// occluder piece both depths are linear in time, so the part of it that occludes is one
     /// interval, found exactly; touching parts merge into runs, so a long train of occluder
     /// pieces (a surface turning over the texel) costs two cuts, not one per piece.
