@@ -488,3 +488,36 @@ fn more_shadowed_lights_than_the_cap_are_refused_by_name() {
         "{error}"
     );
 }
+
+#[test]
+fn only_receivers_that_sweep_texels_and_may_be_shadowed_are_point_sampled() {
+    // A square sliding under a light with nothing above it: lit for sure all along, so none of
+    // its pieces is point-sampled, though it sweeps many shadow-map texels. A floor rising under
+    // a still occluder (the closed-form test above) is point-sampled.
+    let count = |s: &Scene| {
+        let stats = render(s, &Method::ANALYTIC).stats.triangles;
+        assert!(stats.pieces > 0);
+        stats.point_sampled
+    };
+    let alone = lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8).with_object(object(
+        "slider",
+        &square(1.0),
+        [1.0; 3],
+        &[(0.0, at(-2.0, 0.0, 0.0)), (1.0, at(2.0, 0.0, 0.0))],
+    ));
+    assert_eq!(count(&alone), 0);
+    let rising = lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
+        .with_object(object(
+            "floor",
+            &square(8.0),
+            [1.0; 3],
+            &[(0.0, at(0.0, 0.0, -1.0)), (1.0, at(0.0, 0.0, 1.9))],
+        ))
+        .with_object(object(
+            "occluder",
+            &square(1.0),
+            [0.0; 3],
+            &[(0.0, at(1.0, 0.0, 2.0))],
+        ));
+    assert!(count(&rising) > 0);
+}

@@ -87,6 +87,11 @@ pub struct TriangleStats {
     pub joined: usize,
     /// Intervals dropped because a list was still full after compression.
     pub dropped: usize,
+    /// Visible pieces shaded (`analytic`).
+    pub pieces: usize,
+    /// Of those, pieces whose receiver swept shadow-map texels and was point-sampled for a
+    /// shadow that may start or end (the rest are shaded exactly, or lit for sure).
+    pub point_sampled: usize,
     /// Spatial samples per pixel.
     pub spatial_samples: u32,
 }
@@ -107,6 +112,10 @@ impl TriangleStats {
                 "  analytic visibility: {} intervals, at most {} on one sample (cap {MAX_INTERVALS_PER_SAMPLE}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped\n",
                 self.intervals, self.peak_per_sample, self.compressed, self.joined, self.dropped
             ));
+            out.push_str(&format!(
+                "  shading: {} visible pieces, {} of them point-sampled in shadow-map time (dynamic receivers that may be shadowed)\n",
+                self.pieces, self.point_sampled
+            ));
         }
         out
     }
@@ -120,6 +129,8 @@ impl TriangleStats {
         self.compressed += other.compressed;
         self.joined += other.joined;
         self.dropped += other.dropped;
+        self.pieces += other.pieces;
+        self.point_sampled += other.point_sampled;
         self.spatial_samples = self.spatial_samples.max(other.spatial_samples);
     }
 }
@@ -503,7 +514,7 @@ impl<'a> Prepared<'a> {
             for (k, [ox, oy]) in offsets.iter().enumerate() {
                 let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
                 let (colour, beyond) =
-                    self.sample_colour(scratch, pixel * per_pixel + k, d, background);
+                    self.sample_colour(scratch, pixel * per_pixel + k, d, background, stats);
                 for c in 0..3 {
                     sum[c] += colour[c];
                 }
@@ -522,6 +533,7 @@ impl<'a> Prepared<'a> {
         sample: usize,
         d: DVec3,
         background: [f64; 3],
+        stats: &mut TriangleStats,
     ) -> ([f64; 3], f64) {
         match self.exposure {
             Exposure::Instant(_) => match scratch.nearest[sample] {
@@ -551,7 +563,7 @@ impl<'a> Prepared<'a> {
                     if !(mass > 0.0) {
                         continue;
                     }
-                    let mean = self.piece_colour(piece, d, cuts);
+                    let mean = self.piece_colour(piece, d, cuts, stats);
                     for c in 0..3 {
                         colour[c] += mass * mean[c];
                     }
@@ -579,7 +591,14 @@ impl<'a> Prepared<'a> {
     /// max(2|pₑ − pₛ|, 5) equal cuts, or with `Receivers::Traced` the cuts of
     /// [`ShadowMap::traced_breakpoints`]); visibility is taken at each cut piece's middle and the
     /// rest integrated at three Gauss–Legendre times.
-    fn piece_colour(&self, piece: &Interval, d: DVec3, cuts: &mut Vec<f64>) -> [f64; 3] {
+    fn piece_colour(
+        &self,
+        piece: &Interval,
+        d: DVec3,
+        cuts: &mut Vec<f64>,
+        stats: &mut TriangleStats,
+    ) -> [f64; 3] {
+        stats.pieces += 1;
         let item = &self.items[piece.item as usize];
         let triangle = self.corners(item);
         let segment = self.segment(item);
@@ -663,6 +682,7 @@ impl<'a> Prepared<'a> {
                 );
             }
         }
+        stats.point_sampled += usize::from(point_sampled);
         cuts.sort_unstable_by(f64::total_cmp);
         cuts.dedup();
         // The share of each shadow map's light reaching the receiver at t, in the order
