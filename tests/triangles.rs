@@ -422,13 +422,10 @@ fn a_sample_behind_hundreds_of_layers_keeps_what_is_in_front() {
     );
 }
 
-#[test]
-fn a_floor_moving_in_depth_under_a_still_occluder_is_shadowed_for_the_closed_form_time() {
-    // The centre pixel sees the point (0, 0, z) of a floor rising from z = −1 to 1.9 towards
-    // the camera. Light from (1, 0, 1): the unit square at height 2, centred at x = 1, shadows
-    // the point while 2 − z lies in [0.5, 1.5], z in [0.5, 1.5]: 1/2.9 of the exposure, during
-    // which the point sweeps shadow-map texels (a dynamic receiver).
-    let s = lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
+/// A floor rising from z = −1 to 1.9 towards the camera under a still black unit square at
+/// height 2 centred at x = 1, lit from (1, 0, 1).
+fn rising_floor() -> Scene {
+    lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
         .with_object(object(
             "floor",
             &square(8.0),
@@ -440,7 +437,16 @@ fn a_floor_moving_in_depth_under_a_still_occluder_is_shadowed_for_the_closed_for
             &square(1.0),
             [0.0; 3],
             &[(0.0, at(1.0, 0.0, 2.0))],
-        ));
+        ))
+}
+
+#[test]
+fn a_floor_moving_in_depth_under_a_still_occluder_is_shadowed_for_the_closed_form_time() {
+    // The centre pixel sees the point (0, 0, z) of a floor rising from z = −1 to 1.9 towards
+    // the camera. Light from (1, 0, 1): the unit square at height 2, centred at x = 1, shadows
+    // the point while 2 − z lies in [0.5, 1.5], z in [0.5, 1.5]: 1/2.9 of the exposure, during
+    // which the point sweeps shadow-map texels (a dynamic receiver).
+    let s = rising_floor();
     let lit = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
     let expected = lit - (1.0 / 2.9) * (lit - 0.2);
     for receivers in [Receivers::Sampled, Receivers::Traced] {
@@ -506,18 +512,6 @@ fn only_receivers_that_sweep_texels_and_may_be_shadowed_are_point_sampled() {
         &[(0.0, at(-2.0, 0.0, 0.0)), (1.0, at(2.0, 0.0, 0.0))],
     ));
     assert_eq!(count(&alone), 0);
-    let rising = lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
-        .with_object(object(
-            "floor",
-            &square(8.0),
-            [1.0; 3],
-            &[(0.0, at(0.0, 0.0, -1.0)), (1.0, at(0.0, 0.0, 1.9))],
-        ))
-        .with_object(object(
-            "occluder",
-            &square(1.0),
-            [0.0; 3],
-            &[(0.0, at(1.0, 0.0, 2.0))],
-        ));
+    let rising = rising_floor();
     assert!(count(&rising) > 0);
 }
