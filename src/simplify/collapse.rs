@@ -8,24 +8,28 @@
 //! - the link condition (the vertices next to both ends are exactly the corners opposite the
 //!   edge), and no interior edge between two boundary vertices (it would pinch the surface);
 //! - no corner opposite the edge left with two faces (a closed tetrahedron would fold flat);
-//! - no face turned by more than [`MAX_TURN_DEGREES`] or shrunk to nothing (fold-overs);
+//! - no face turned by more than [`MAX_TURN_DEGREES`] in one collapse or [`MAX_DRIFT_DEGREES`]
+//!   from its normal in the input, or shrunk to nothing (fold-overs);
 //! - no vertex with more than [`MAX_VALENCE`] faces, which also bounds the work of each
 //!   collapse: without it a fan of n faces costs n² (see `Stats::valence_refusals`);
 //! - vertices on an edge shared by more than two faces never move (`locked`).
 
-use std::cmp::Ordering;
-
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::heap::{Entry, Heap};
 use super::quadric::Quadric;
-use super::{Limits, Weighting};
 use crate::scene::triangles::faces_around;
 
 /// Largest turn of a face's normal a collapse may cause, degrees: past a right angle a face has
 /// folded over; a little short of it catches the near-folds that flip with the next collapse.
 pub const MAX_TURN_DEGREES: f64 = 80.0;
+
+/// Largest turn of a face's normal from its normal in the input, degrees. Each collapse may turn a
+/// face by up to [`MAX_TURN_DEGREES`], and turns add up: at 90° from the input, needles standing
+/// across the surface were left on the bunny (one face facing away from the input surface nearest
+/// it); at 60° none, at the same mean distance to the input (docs/math.md, "Mesh simplification").
+pub const MAX_DRIFT_DEGREES: f64 = 60.0;
 
 /// Most faces one vertex may gather (see the module notes).
 pub const MAX_VALENCE: usize = 32;
@@ -52,73 +56,62 @@ pub struct Stats {
     pub limit_refusals: usize,
 }
 
+impl std::ops::AddAssign for Stats {
+    fn add_assign(&mut self, other: Stats) {
+        self.collapses += other.collapses;
+        self.fold_refusals += other.fold_refusals;
+        self.topology_refusals += other.topology_refusals;
+        self.valence_refusals += other.valence_refusals;
+        self.limit_refusals += other.limit_refusals;
+    }
+}
+
 /// Why the faces around a collapse refuse it.
 enum Refusal {
     Fold,
     Limit,
 }
 
-/// The mesh being collapsed.
-pub(super) struct Collapser<'w> {
+/// What a collapse works on per vertex, and gives back: the rest of the collapser is
+/// bookkeeping.
+pub(super) struct Vertices {
     pub positions: Vec<DVec3>,
-    pub faces: Vec<[u32; 3]>,
-    pub face_alive: Vec<bool>,
-    vertex_alive: Vec<bool>,
-    /// Per-vertex channels carried along, `channels` numbers each, interpolated along the edge.
+    pub quadrics: Vec<Quadric>,
+    /// On an edge of one face.
+    pub boundary: Vec<bool>,
+    /// On an edge of more than two faces: never moves.
+    pub locked: Vec<bool>,
+    /// Channels carried along, `channels` numbers per vertex, interpolated along each edge.
     pub carried: Vec<f32>,
-    channels: usize,
-    quadrics: Vec<Quadric>,
-    /// Faces around each vertex: `refs[start[v]..start[v] + count[v]]`, stale faces included
-    /// until the vertex is next rewritten; a merged vertex's list is appended at the end.
-    refs: Vec<u32>,
-    start: Vec<usize>,
-    count: Vec<u32>,
-    version: Vec<u32>,
-    boundary: Vec<bool>,
-    locked: Vec<bool>,
-    weighting: &'w Weighting,
-    /// Per-vertex motion (for [`Weighting::PerVertex`]), carried like an attribute.
-    motions: Vec<DVec3>,
+    /// Motion per vertex (for [`super::Weighting::PerVertex`], else empty), carried like a channel.
+    pub motions: Vec<DVec3>,
     /// Longest perimeter, object units, of a face touching each vertex.
-    limits: Option<Vec<f64>>,
-    pub live_faces: usize,
-    pub stats: Stats,
-    /// Edges shared by more than two faces, whose ends were locked.
-    pub non_manifold_edges: usize,
-    heap: Heap,
-    scratch_a: Vec<u32>,
-    scratch_b: Vec<u32>,
+    pub limits: Option<Vec<f64>>,
 }
 
-impl<'w> Collapser<'w> {
-    /// Set up quadrics, adjacency and boundaries for `faces` over `positions` (all indices valid,
-    /// no face with a repeated corner).
+impl Vertices {
+    /// The vertices of `faces` over `positions` (all indices valid, no face with a repeated
+    /// corner) before any collapse: each one's quadric, boundary and lock from the faces around
+    /// it; and how many edges have more than two faces.
     pub fn new(
         positions: Vec<DVec3>,
-        faces: Vec<[u32; 3]>,
+        faces: &[[u32; 3]],
         carried: Vec<f32>,
-        channels: usize,
-        weighting: &'w Weighting,
-        limits: Option<&Limits>,
-    ) -> Collapser<'w> {
+        motions: Vec<DVec3>,
+        limits: Option<Vec<f64>>,
+    ) -> (Vertices, usize) {
         let n = positions.len();
-        let (mut start, refs) = faces_around(n, &faces);
-        let count: Vec<u32> = (0..n).map(|v| (start[v + 1] - start[v]) as u32).collect();
-        start.pop();
-
-        // Per vertex: its area-weighted face planes; and the edges to higher-numbered
-        // neighbours with how many faces share each (1 boundary, 2 manifold, more non-manifold),
-        // gathered in parallel chunks and joined in vertex order.
+        let around = FacesAround::new(n, faces);
         let face_plane = |f: usize| {
             let [a, b, c] = faces[f].map(|i| positions[i as usize]);
             ((b - a).cross(c - a), a)
         };
-        let faces_around = |v: usize| &refs[start[v]..start[v] + count[v] as usize];
+        // Per vertex: its area-weighted face planes.
         let mut quadrics: Vec<Quadric> = (0..n)
             .into_par_iter()
             .map(|v| {
                 let mut q = Quadric::default();
-                for &f in faces_around(v) {
+                for &f in around.of(v) {
                     let (cross, point) = face_plane(f as usize);
                     let area2 = cross.length();
                     if area2 > 0.0 {
@@ -128,28 +121,10 @@ impl<'w> Collapser<'w> {
                 q
             })
             .collect();
-        let edges: Vec<[u32; 3]> = (0..n)
-            .into_par_iter()
-            .fold(Vec::new, |mut edges: Vec<[u32; 3]>, v| {
-                let first = edges.len();
-                for &f in faces_around(v) {
-                    for &w in &faces[f as usize] {
-                        if w as usize > v {
-                            match edges[first..].iter_mut().find(|e| e[1] == w) {
-                                Some(e) => e[2] += 1,
-                                None => edges.push([v as u32, w, 1]),
-                            }
-                        }
-                    }
-                }
-                edges
-            })
-            .flatten_iter()
-            .collect();
         let mut boundary = vec![false; n];
         let mut locked = vec![false; n];
         let mut non_manifold_edges = 0;
-        for &[v, w, shared] in &edges {
+        for [v, w, shared] in around.edges(faces) {
             let (v, w) = (v as usize, w as usize);
             if shared > 2 {
                 non_manifold_edges += 1;
@@ -158,7 +133,8 @@ impl<'w> Collapser<'w> {
             } else if shared == 1 {
                 boundary[v] = true;
                 boundary[w] = true;
-                let f = faces_around(v)
+                let f = around
+                    .of(v)
                     .iter()
                     .copied()
                     .find(|&f| faces[f as usize].contains(&(w as u32)))
@@ -176,59 +152,162 @@ impl<'w> Collapser<'w> {
                 }
             }
         }
-        let motions = match weighting {
-            Weighting::PerVertex(m) => m.clone(),
-            _ => Vec::new(),
-        };
-        let live_faces = faces.len();
-        let mut collapser = Collapser {
-            face_alive: vec![true; faces.len()],
-            vertex_alive: vec![true; n],
+        let vertices = Vertices {
             positions,
-            faces,
-            carried,
-            channels,
             quadrics,
-            refs,
-            start,
-            count,
-            version: vec![0; n],
             boundary,
             locked,
-            weighting,
+            carried,
             motions,
-            limits: limits.map(|l| l.per_vertex.clone()),
-            live_faces,
-            stats: Stats::default(),
-            non_manifold_edges,
-            heap: Heap::default(),
-            scratch_a: Vec::new(),
-            scratch_b: Vec::new(),
+            limits,
         };
-        collapser.initial_heap(&edges);
-        collapser
+        (vertices, non_manifold_edges)
+    }
+}
+
+/// The faces around each vertex, as one list: `refs[start[v]..start[v] + count[v]]`.
+struct FacesAround {
+    refs: Vec<u32>,
+    start: Vec<usize>,
+    count: Vec<u32>,
+}
+
+impl FacesAround {
+    fn new(vertices: usize, faces: &[[u32; 3]]) -> FacesAround {
+        let (mut start, refs) = faces_around(vertices, faces);
+        let count = start.windows(2).map(|w| (w[1] - w[0]) as u32).collect();
+        start.pop();
+        FacesAround { refs, start, count }
     }
 
-    fn initial_heap(&mut self, edges: &[[u32; 3]]) {
-        let this = &*self;
+    fn of(&self, v: usize) -> &[u32] {
+        &self.refs[self.start[v]..self.start[v] + self.count[v] as usize]
+    }
+
+    /// Each edge once, from its lower-numbered end, with how many faces share it (1 boundary,
+    /// 2 manifold, more non-manifold): gathered in parallel chunks, joined in vertex order.
+    fn edges(&self, faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+        (0..self.start.len())
+            .into_par_iter()
+            .fold(Vec::new, |mut edges: Vec<[u32; 3]>, v| {
+                let first = edges.len();
+                for &f in self.of(v) {
+                    for &w in &faces[f as usize] {
+                        if w as usize > v {
+                            match edges[first..].iter_mut().find(|e| e[1] == w) {
+                                Some(e) => e[2] += 1,
+                                None => edges.push([v as u32, w, 1]),
+                            }
+                        }
+                    }
+                }
+                edges
+            })
+            .flatten_iter()
+            .collect()
+    }
+}
+
+/// The mesh being collapsed.
+pub(super) struct Collapser {
+    vertices: Vertices,
+    faces: Vec<[u32; 3]>,
+    face_alive: Vec<bool>,
+    /// Each face's normal in the input mesh (unit, or zero for a face without area).
+    first_normals: Vec<Vec3>,
+    channels: usize,
+    /// One motion direction for every edge (for [`super::Weighting::Direction`]).
+    direction: Option<DVec3>,
+    /// Per vertex, faces around it that this collapser does not hold (see `super::blocks`;
+    /// empty when it holds them all). A vertex with any may not be an end of a collapse.
+    faces_elsewhere: Vec<u32>,
+    /// The live faces around each vertex. A merged vertex's list is appended at the end; a face
+    /// that dies leaves its third corner's list.
+    around: FacesAround,
+    /// Bumped whenever a vertex moves or dies, so that every queued edge on it goes stale.
+    version: Vec<u32>,
+    pub live_faces: usize,
+    pub stats: Stats,
+    heap: Heap,
+    /// Per vertex, the last visit that marked it (see `next_visit`): sets of neighbours
+    /// without sorting or clearing.
+    mark: Vec<u32>,
+    visit: u32,
+    /// The edges around a merged vertex, costed before they are queued.
+    costed: Vec<(f64, Entry)>,
+}
+
+impl Collapser {
+    /// Queue every edge of `faces` over `vertices` (all indices valid, no face with a repeated
+    /// corner; `first_normals` one per face, see [`first_normals`]) whose ends have no
+    /// `faces_elsewhere` (empty: none has).
+    pub fn new(
+        vertices: Vertices,
+        faces: Vec<[u32; 3]>,
+        first_normals: Vec<Vec3>,
+        faces_elsewhere: Vec<u32>,
+        channels: usize,
+        direction: Option<DVec3>,
+    ) -> Collapser {
+        let n = vertices.positions.len();
+        let mut around = FacesAround::new(n, &faces);
+        // Merged vertices' lists are appended: room for about as many again as there are.
+        around.refs.reserve(around.refs.len());
+        let edges = around.edges(&faces);
+        let mut collapser = Collapser {
+            live_faces: faces.len(),
+            face_alive: vec![true; faces.len()],
+            first_normals,
+            vertices,
+            faces,
+            channels,
+            direction,
+            faces_elsewhere,
+            around,
+            version: vec![0; n],
+            stats: Stats::default(),
+            heap: Heap::default(),
+            mark: vec![0; n],
+            visit: 0,
+            costed: Vec::new(),
+        };
+        let this = &collapser;
         let entries: Vec<(f64, Entry)> = edges
             .par_iter()
             .filter_map(|&[v, w, _]| this.candidate(v, w))
             .collect();
-        for (cost, entry) in entries {
-            self.heap.push(cost, entry);
-        }
+        collapser.heap.extend(entries);
+        collapser
     }
 
-    /// Collapse the cheapest edges until at most `target_faces` faces are left or no edge may
-    /// collapse; `progress` hears the face count now and then.
-    pub fn run(&mut self, target_faces: usize, progress: &mut dyn FnMut(usize)) {
+    /// The vertices as collapsed, the live faces, and each face's place among those given.
+    pub fn into_parts(self) -> (Vertices, Vec<([u32; 3], u32)>) {
+        let faces = self
+            .faces
+            .into_iter()
+            .zip(self.face_alive)
+            .enumerate()
+            .filter(|(_, (_, alive))| *alive)
+            .map(|(f, (face, _))| (face, f as u32))
+            .collect();
+        (self.vertices, faces)
+    }
+
+    /// The queue's cheapest bin, if any edge waits.
+    pub fn cheapest_bin(&self) -> Option<usize> {
+        self.heap.cheapest_bin()
+    }
+
+    /// Collapse the cheapest edges until at most `target_faces` faces are left, or no edge
+    /// waits in a bin before `below_bin`, or none may collapse; `progress` hears the face count
+    /// now and then.
+    pub fn run(&mut self, target_faces: usize, below_bin: usize, progress: &mut dyn FnMut(usize)) {
         while self.live_faces > target_faces {
-            let Some(entry) = self.heap.pop() else { break };
+            let Some(entry) = self.heap.pop(below_bin) else {
+                break;
+            };
             let (a, b) = (entry.a as usize, entry.b as usize);
-            if !(self.vertex_alive[a] && self.vertex_alive[b])
-                || self.version[a] + self.version[b] != entry.stamp
-            {
+            if self.version[a] + self.version[b] != entry.stamp {
                 continue;
             }
             if self.try_collapse(a, b) {
@@ -252,9 +331,14 @@ impl<'w> Collapser<'w> {
     /// or when the quadric is singular the cheapest of the two ends and the middle (§4); a
     /// locked end stays put.
     fn placement(&self, a: usize, b: usize) -> Option<(f64, DVec3)> {
-        let q = self.quadrics[a] + self.quadrics[b];
-        let (pa, pb) = (self.positions[a], self.positions[b]);
-        let p = match (self.locked[a], self.locked[b]) {
+        if !self.faces_elsewhere.is_empty()
+            && (self.faces_elsewhere[a] > 0 || self.faces_elsewhere[b] > 0)
+        {
+            return None;
+        }
+        let q = self.vertices.quadrics[a] + self.vertices.quadrics[b];
+        let (pa, pb) = (self.vertices.positions[a], self.vertices.positions[b]);
+        let p = match (self.vertices.locked[a], self.vertices.locked[b]) {
             (true, true) => return None,
             (true, false) => pa,
             (false, true) => pb,
@@ -272,12 +356,13 @@ impl<'w> Collapser<'w> {
     /// Zhang et al. 2014, eq. 4: f(α) = 1 − (1 − cos α)^r + ε, α the angle between the edge and
     /// the motion; 1 without motion.
     fn direction_weight(&self, a: usize, b: usize) -> f64 {
-        let motion = match self.weighting {
-            Weighting::Isotropic => return 1.0,
-            Weighting::Direction(d) => *d,
-            Weighting::PerVertex(_) => self.motions[a] + self.motions[b],
+        let motions = &self.vertices.motions;
+        let motion = match self.direction {
+            _ if !motions.is_empty() => motions[a] + motions[b],
+            Some(d) => d,
+            None => return 1.0,
         };
-        let edge = self.positions[b] - self.positions[a];
+        let edge = self.vertices.positions[b] - self.vertices.positions[a];
         let norms = edge.length() * motion.length();
         if !(norms > 0.0) {
             return 1.0;
@@ -287,20 +372,26 @@ impl<'w> Collapser<'w> {
 
     /// The live faces around `v`.
     fn faces_of(&self, v: usize) -> impl Iterator<Item = usize> + '_ {
-        self.refs[self.start[v]..self.start[v] + self.count[v] as usize]
-            .iter()
-            .map(|&f| f as usize)
-            .filter(|&f| self.face_alive[f])
+        self.around.of(v).iter().map(|&f| f as usize)
     }
 
-    /// The vertices sharing a live face with `v` (not `v`), sorted, into `out`.
-    fn neighbours(&self, v: usize, out: &mut Vec<u32>) {
-        out.clear();
-        for f in self.faces_of(v) {
-            out.extend(self.faces[f].iter().filter(|&&w| w as usize != v));
+    /// The corners other than `v` of the live faces around `v`: each neighbour twice on a closed
+    /// fan (once on a boundary).
+    fn corners_around(&self, v: usize) -> impl Iterator<Item = usize> + '_ {
+        self.faces_of(v)
+            .flat_map(move |f| self.faces[f])
+            .map(|w| w as usize)
+            .filter(move |&w| w != v)
+    }
+
+    /// A fresh mark: no vertex carries it yet.
+    fn next_visit(&mut self) -> u32 {
+        if self.visit == u32::MAX {
+            self.mark.fill(0);
+            self.visit = 0;
         }
-        out.sort_unstable();
-        out.dedup();
+        self.visit += 1;
+        self.visit
     }
 
     /// Check the safeguards for merging `b` into `a` and, when they hold, do it.
@@ -325,7 +416,7 @@ impl<'w> Collapser<'w> {
                 shared += 1;
             }
         }
-        let faces_b = self.faces_of(b).count();
+        let faces_b = self.around.count[b] as usize;
         if shared == 0 || shared > 2 {
             self.stats.topology_refusals += 1;
             return false;
@@ -338,7 +429,7 @@ impl<'w> Collapser<'w> {
             self.stats.topology_refusals += 1;
             return false;
         }
-        let limit = self.limits.as_ref().map(|l| l[a].min(l[b]));
+        let limit = self.vertices.limits.as_ref().map(|l| l[a].min(l[b]));
         match self.reshaped_faces(a, b, p, limit) {
             Some(Refusal::Fold) => {
                 self.stats.fold_refusals += 1;
@@ -363,18 +454,18 @@ impl<'w> Collapser<'w> {
                 if face.contains(&(other as u32)) {
                     continue;
                 }
-                let old = face.map(|w| self.positions[w as usize]);
+                let old = face.map(|w| self.vertices.positions[w as usize]);
                 let new = face.map(|w| {
                     if w as usize == moved {
                         p
                     } else {
-                        self.positions[w as usize]
+                        self.vertices.positions[w as usize]
                     }
                 });
-                if folds(old, new) {
+                if folds(old, new, self.first_normals[f]) {
                     return Some(Refusal::Fold);
                 }
-                if let (Some(limit), Some(limits)) = (limit, &self.limits) {
+                if let (Some(limit), Some(limits)) = (limit, &self.vertices.limits) {
                     let face_limit = face
                         .iter()
                         .map(|&w| {
@@ -400,41 +491,54 @@ impl<'w> Collapser<'w> {
     /// The link condition and the boundary rules for edge (a, b) with `shared` faces whose
     /// corners off the edge are `opposite`.
     fn topology_holds(&mut self, a: usize, b: usize, shared: usize, opposite: &[u32]) -> bool {
-        if shared == 2 && self.boundary[a] && self.boundary[b] {
+        if shared == 2 && self.vertices.boundary[a] && self.vertices.boundary[b] {
             return false;
         }
         // A corner opposite the edge with three faces would keep two, back to back.
-        if opposite
-            .iter()
-            .any(|&o| !self.boundary[o as usize] && self.faces_of(o as usize).count() <= 3)
-        {
+        if opposite.iter().any(|&o| {
+            !self.vertices.boundary[o as usize] && self.faces_around_count(o as usize) <= 3
+        }) {
             return false;
         }
-        let mut na = std::mem::take(&mut self.scratch_a);
-        let mut nb = std::mem::take(&mut self.scratch_b);
-        self.neighbours(a, &mut na);
-        self.neighbours(b, &mut nb);
-        let (mut i, mut j, mut common) = (0, 0, 0);
-        while i < na.len() && j < nb.len() {
-            match na[i].cmp(&nb[j]) {
-                Ordering::Less => i += 1,
-                Ordering::Greater => j += 1,
-                Ordering::Equal => {
-                    common += 1;
-                    i += 1;
-                    j += 1;
-                }
+        // Neighbours of a carry `of_a`; each neighbour of b found with it is counted once and
+        // re-marked `counted`.
+        let of_a = self.next_visit();
+        let counted = self.next_visit();
+        let mut mark = std::mem::take(&mut self.mark);
+        for w in self.corners_around(a) {
+            mark[w] = of_a;
+        }
+        let mut common = 0;
+        for w in self.corners_around(b) {
+            if mark[w] == of_a {
+                mark[w] = counted;
+                common += 1;
             }
         }
-        self.scratch_a = na;
-        self.scratch_b = nb;
+        self.mark = mark;
         common == shared
+    }
+
+    /// How many faces are around `v`, held here or not.
+    fn faces_around_count(&self, v: usize) -> u32 {
+        self.around.count[v] + self.faces_elsewhere.get(v).copied().unwrap_or(0)
+    }
+
+    /// Take face `f` out of the list of faces around `v` (the order of the rest may change).
+    fn forget_face(&mut self, v: usize, f: u32) {
+        let around = &mut self.around;
+        let list = &mut around.refs[around.start[v]..around.start[v] + around.count[v] as usize];
+        if let Some(i) = list.iter().position(|&g| g == f) {
+            let last = list.len() - 1;
+            list.swap(i, last);
+            around.count[v] -= 1;
+        }
     }
 
     /// Merge `b` into `a` at `p`: faces on the edge die, `b`'s other faces take `a`, and the
     /// edges around `a` are costed again.
     fn merge(&mut self, a: usize, b: usize, p: DVec3, limit: Option<f64>) {
-        let (pa, pb) = (self.positions[a], self.positions[b]);
+        let (pa, pb) = (self.vertices.positions[a], self.vertices.positions[b]);
         let along = (pb - pa).length_squared();
         let t = if along > 0.0 {
             ((p - pa).dot(pb - pa) / along).clamp(0.0, 1.0)
@@ -443,70 +547,98 @@ impl<'w> Collapser<'w> {
         };
         let k = self.channels;
         for c in 0..k {
-            let (x, y) = (self.carried[a * k + c], self.carried[b * k + c]);
-            self.carried[a * k + c] = x + (y - x) * t as f32;
+            let (x, y) = (
+                self.vertices.carried[a * k + c],
+                self.vertices.carried[b * k + c],
+            );
+            self.vertices.carried[a * k + c] = x + (y - x) * t as f32;
         }
-        if !self.motions.is_empty() {
-            self.motions[a] = self.motions[a].lerp(self.motions[b], t);
+        if !self.vertices.motions.is_empty() {
+            self.vertices.motions[a] = self.vertices.motions[a].lerp(self.vertices.motions[b], t);
         }
-        if let (Some(limit), Some(limits)) = (limit, self.limits.as_mut()) {
+        if let (Some(limit), Some(limits)) = (limit, self.vertices.limits.as_mut()) {
             limits[a] = limit;
         }
-        self.positions[a] = p;
-        let qb = self.quadrics[b];
-        self.quadrics[a] += qb;
-        self.boundary[a] |= self.boundary[b];
-        self.locked[a] |= self.locked[b];
-        self.vertex_alive[b] = false;
+        self.vertices.positions[a] = p;
+        let qb = self.vertices.quadrics[b];
+        self.vertices.quadrics[a] += qb;
+        self.vertices.boundary[a] |= self.vertices.boundary[b];
+        self.vertices.locked[a] |= self.vertices.locked[b];
+        self.version[b] += 1;
 
-        let new_start = self.refs.len();
-        for i in self.start[a]..self.start[a] + self.count[a] as usize {
-            let f = self.refs[i] as usize;
-            if !self.face_alive[f] {
-                continue;
-            }
-            if self.faces[f].contains(&(b as u32)) {
+        let new_start = self.around.refs.len();
+        for i in self.around.start[a]..self.around.start[a] + self.around.count[a] as usize {
+            let f = self.around.refs[i] as usize;
+            let face = self.faces[f];
+            if face.contains(&(b as u32)) {
                 self.face_alive[f] = false;
                 self.live_faces -= 1;
+                let opposite = face
+                    .into_iter()
+                    .find(|&w| w as usize != a && w as usize != b)
+                    .expect("a face has three corners") as usize;
+                self.forget_face(opposite, f as u32);
             } else {
-                self.refs.push(f as u32);
+                self.around.refs.push(f as u32);
             }
         }
-        for i in self.start[b]..self.start[b] + self.count[b] as usize {
-            let f = self.refs[i] as usize;
+        for i in self.around.start[b]..self.around.start[b] + self.around.count[b] as usize {
+            let f = self.around.refs[i] as usize;
             if self.face_alive[f] {
                 for w in &mut self.faces[f] {
                     if *w as usize == b {
                         *w = a as u32;
                     }
                 }
-                self.refs.push(f as u32);
+                self.around.refs.push(f as u32);
             }
         }
-        self.start[a] = new_start;
-        self.count[a] = (self.refs.len() - new_start) as u32;
-        self.count[b] = 0;
+        self.around.start[a] = new_start;
+        self.around.count[a] = (self.around.refs.len() - new_start) as u32;
+        self.around.count[b] = 0;
         self.version[a] += 1;
 
-        let mut around = std::mem::take(&mut self.scratch_a);
-        self.neighbours(a, &mut around);
-        for &n in &around {
-            if let Some((cost, entry)) = self.candidate(a as u32, n) {
-                self.heap.push(cost, entry);
+        let seen = self.next_visit();
+        let mut mark = std::mem::take(&mut self.mark);
+        let mut costed = std::mem::take(&mut self.costed);
+        for w in self.corners_around(a) {
+            if mark[w] != seen {
+                mark[w] = seen;
+                costed.extend(self.candidate(a as u32, w as u32));
             }
         }
-        self.scratch_a = around;
+        for (cost, entry) in costed.drain(..) {
+            self.heap.push(cost, entry);
+        }
+        self.mark = mark;
+        self.costed = costed;
     }
 }
 
-/// Whether a face moving from corners `old` to `new` folds over, turns by more than
-/// [`MAX_TURN_DEGREES`], or shrinks to no area. A face that had no area may take any shape.
-fn folds(old: [DVec3; 3], new: [DVec3; 3]) -> bool {
+/// Whether a face moving from corners `old` to `new` folds over: turns by more than
+/// [`MAX_TURN_DEGREES`] in this collapse or [`MAX_DRIFT_DEGREES`] from its unit normal in the
+/// input (`first`), or shrinks to no area. A face that had no area may take any shape.
+fn folds(old: [DVec3; 3], new: [DVec3; 3], first: Vec3) -> bool {
     let n_old = (old[1] - old[0]).cross(old[2] - old[0]);
     let n_new = (new[1] - new[0]).cross(new[2] - new[0]);
     let (l_old, l_new) = (n_old.length(), n_new.length());
     if !(l_old > 0.0) {
         return false;
     }
-    !(l_new > 0.0) || n_old.dot(n_new) < MAX_TURN_DEGREES.to_radians().cos() * l_old * l_new
+    !(l_new > 0.0)
+        || n_old.dot(n_new) < MAX_TURN_DEGREES.to_radians().cos() * l_old * l_new
+        || (first != Vec3::ZERO
+            && n_new.dot(first.as_dvec3()) < MAX_DRIFT_DEGREES.to_radians().cos() * l_new)
+}
+
+/// The unit normal of each face (zero where it has no area), kept in single precision: it only
+/// tells which way a face once faced.
+pub(super) fn first_normals(positions: &[DVec3], faces: &[[u32; 3]]) -> Vec<Vec3> {
+    faces
+        .par_iter()
+        .map(|face| {
+            let [a, b, c] = face.map(|v| positions[v as usize]);
+            (b - a).cross(c - a).normalize_or_zero().as_vec3()
+        })
+        .collect()
 }

@@ -5,9 +5,12 @@
 //! [`simplify`] repairs what it can, says what it repaired ([`Repairs`]), and collapses edges
 //! cheapest first until the mesh has the faces asked for, or no edge may collapse without
 //! breaking the surface or a detail limit ([`collapse`] lists the safeguards). A manifold input
-//! stays manifold, closed stays closed, and no face folds over. The result depends on the input
-//! alone, whatever the thread count.
+//! stays manifold, closed stays closed, and no face folds over. A mesh of at least
+//! 2 × [`BLOCK_VERTICES`] vertices is first collapsed in parallel blocks, up to a little short of
+//! the target, and a single queue finishes it. The result depends on the input alone, whatever
+//! the thread count.
 
+mod blocks;
 pub mod collapse;
 mod heap;
 pub mod quadric;
@@ -17,8 +20,11 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use crate::math::MortonCurve;
 use crate::surfels::Mesh;
-pub use collapse::{Stats, MAX_TURN_DEGREES, MAX_VALENCE};
+pub use blocks::{BLOCK_VERTICES, MAX_BLOCKS};
+use collapse::{first_normals, Collapser, Vertices};
+pub use collapse::{Stats, MAX_DRIFT_DEGREES, MAX_TURN_DEGREES, MAX_VALENCE};
 
 /// Zhang et al.'s exponent r in eq. 4, from their user study (Appendix A).
 pub const DIRECTION_EXPONENT: i32 = 4;
@@ -159,77 +165,138 @@ pub fn simplify(
         }
     }
     let mut repairs = Repairs::default();
-    let (faces, welded) = repaired_faces(mesh, &mut repairs);
-    repairs.welded = welded;
+    let order = VertexOrder::new(mesh);
+    repairs.welded = n - order.original.len();
+    let faces = repaired_faces(mesh, &order, &mut repairs);
 
-    let mut collapser = collapse::Collapser::new(
-        mesh.positions.clone(),
-        faces,
-        values.to_vec(),
-        channels,
-        &options.weighting,
-        options.limits.as_ref(),
+    // The collapser works on the vertices in curve order; what it is given per input vertex is
+    // taken from each position's first vertex.
+    let (motions, direction) = match &options.weighting {
+        Weighting::PerVertex(motions) => (
+            order
+                .original
+                .iter()
+                .map(|&v| motions[v as usize])
+                .collect(),
+            None,
+        ),
+        Weighting::Direction(d) => (Vec::new(), Some(*d)),
+        Weighting::Isotropic => (Vec::new(), None),
+    };
+    let limits = options.limits.as_ref().map(|l| {
+        order
+            .original
+            .iter()
+            .map(|&v| l.per_vertex[v as usize])
+            .collect()
+    });
+    let carried_in = order
+        .original
+        .iter()
+        .flat_map(|&v| &values[v as usize * channels..(v as usize + 1) * channels])
+        .copied()
+        .collect();
+    let positions: Vec<DVec3> = order
+        .original
+        .iter()
+        .map(|&v| mesh.positions[v as usize])
+        .collect();
+    let normals = first_normals(&positions, &faces);
+    let (vertices, non_manifold_edges) =
+        Vertices::new(positions, &faces, carried_in, motions, limits);
+    repairs.non_manifold_edges = non_manifold_edges;
+    let target = options.target_faces;
+    let (vertices, faces, in_blocks) = blocks::collapse_in_blocks(
+        vertices, faces, &normals, target, channels, direction, progress,
     );
-    repairs.non_manifold_edges = collapser.non_manifold_edges;
-    collapser.run(options.target_faces, progress);
-    let reached_target = collapser.live_faces <= options.target_faces;
+    let (faces, normals) = faces
+        .into_iter()
+        .map(|(face, place)| (face, normals[place as usize]))
+        .unzip();
+    let mut collapser = Collapser::new(vertices, faces, normals, Vec::new(), channels, direction);
+    collapser.run(target, usize::MAX, progress);
+    let reached_target = collapser.live_faces <= target;
+    let mut stats = collapser.stats;
+    stats += in_blocks;
+    let (vertices, faces) = collapser.into_parts();
 
     // Keep the vertices live faces use, in input order.
-    let mut used = vec![false; n];
-    for (f, face) in collapser.faces.iter().enumerate() {
-        if collapser.face_alive[f] {
-            for &v in face {
-                used[v as usize] = true;
-            }
+    let mut used = vec![false; order.original.len()];
+    for (face, _) in &faces {
+        for &v in face {
+            used[v as usize] = true;
         }
     }
-    let mut index = vec![u32::MAX; n];
+    let mut kept: Vec<(u32, u32)> = (0..order.original.len() as u32)
+        .filter(|&v| used[v as usize])
+        .map(|v| (order.original[v as usize], v))
+        .collect();
+    kept.sort_unstable();
+    let mut index = vec![u32::MAX; order.original.len()];
     let mut out = Mesh::default();
     let mut carried_out = Vec::new();
-    for v in (0..n).filter(|&v| used[v]) {
+    for &(_, v) in &kept {
+        let v = v as usize;
         index[v] = out.positions.len() as u32;
-        out.positions.push(collapser.positions[v]);
-        carried_out.extend_from_slice(&collapser.carried[v * channels..(v + 1) * channels]);
+        out.positions.push(vertices.positions[v]);
+        carried_out.extend_from_slice(&vertices.carried[v * channels..(v + 1) * channels]);
     }
-    out.triangles = collapser
-        .faces
-        .iter()
-        .zip(&collapser.face_alive)
-        .filter(|(_, &alive)| alive)
+    out.triangles = faces
+        .into_iter()
         .map(|(face, _)| face.map(|v| index[v as usize]))
         .collect();
     Ok(Simplified {
         mesh: out,
         carried: carried_out,
         repairs,
-        stats: collapser.stats,
+        stats,
         reached_target,
     })
 }
 
-/// The faces with welded corners, less those with a repeated corner or repeating an earlier
-/// face; and how many vertices were welded. Both searches sort (in parallel) rather than hash:
-/// on a 1.6 M-face mesh hashing took a tenth of the whole simplification.
-fn repaired_faces(mesh: &Mesh, repairs: &mut Repairs) -> (Vec<[u32; 3]>, usize) {
-    let n = mesh.positions.len();
-    let mut by_position: Vec<([u64; 3], u32)> = mesh
-        .positions
-        .iter()
-        .enumerate()
-        .map(|(v, p)| (p.to_array().map(f64::to_bits), v as u32))
-        .collect();
-    by_position.par_sort_unstable();
-    let mut weld: Vec<u32> = (0..n as u32).collect();
-    let mut welded = 0;
-    for w in by_position.windows(2) {
-        if w[0].0 == w[1].0 {
-            weld[w[1].1 as usize] = weld[w[0].1 as usize];
-            welded += 1;
+/// The input's distinct positions laid out along a Morton curve, so that a run of consecutive
+/// vertices is a compact patch of the surface: the blocks collapsed in parallel (`blocks`) are
+/// such runs, and their seams stay short.
+struct VertexOrder {
+    /// For each vertex in curve order, the first input vertex at its position.
+    original: Vec<u32>,
+    /// For each input vertex, its place in curve order (vertices at one position share it).
+    place: Vec<u32>,
+}
+
+impl VertexOrder {
+    /// Sorted in parallel by (key, position, index), so vertices at exactly one position (signed
+    /// zeros alike) fall next to each other and the first of them comes first.
+    fn new(mesh: &Mesh) -> VertexOrder {
+        let curve = MortonCurve::around(mesh.positions.iter().copied());
+        // Adding zero turns −0 into +0, so the two weld.
+        let bits = |p: DVec3| (p + DVec3::ZERO).to_array().map(f64::to_bits);
+        let mut sorted: Vec<(u64, [u64; 3], u32)> = mesh
+            .positions
+            .par_iter()
+            .enumerate()
+            .map(|(v, &p)| (curve.key(p), bits(p), v as u32))
+            .collect();
+        sorted.par_sort_unstable();
+        let mut original = Vec::with_capacity(sorted.len());
+        let mut place = vec![0u32; sorted.len()];
+        for (i, &(key, position, v)) in sorted.iter().enumerate() {
+            if i == 0 || (key, position) != (sorted[i - 1].0, sorted[i - 1].1) {
+                original.push(v);
+            }
+            place[v as usize] = original.len() as u32 - 1;
         }
+        VertexOrder { original, place }
     }
+}
+
+/// The faces in curve-order vertices, less those with a repeated corner or repeating an earlier
+/// face. The duplicate search sorts (in parallel) rather than hashes: on a 1.6 M-face mesh
+/// hashing took a tenth of the whole simplification.
+fn repaired_faces(mesh: &Mesh, order: &VertexOrder, repairs: &mut Repairs) -> Vec<[u32; 3]> {
     let mut faces: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
     for t in &mesh.triangles {
-        let t = t.map(|v| weld[v as usize]);
+        let t = t.map(|v| order.place[v as usize]);
         if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
             repairs.repeated_corners += 1;
         } else {
@@ -254,7 +321,7 @@ fn repaired_faces(mesh: &Mesh, repairs: &mut Repairs) -> (Vec<[u32; 3]>, usize) 
             repairs.duplicate_faces += 1;
         }
     }
-    let mut referenced = vec![false; n];
+    let mut referenced = vec![false; order.original.len()];
     let mut kept = keep.iter();
     faces.retain(|t| {
         let keep = *kept.next().expect("one flag per face");
@@ -265,8 +332,6 @@ fn repaired_faces(mesh: &Mesh, repairs: &mut Repairs) -> (Vec<[u32; 3]>, usize) 
         }
         keep
     });
-    repairs.isolated = (0..n)
-        .filter(|&v| weld[v] as usize == v && !referenced[v])
-        .count();
-    (faces, welded)
+    repairs.isolated = referenced.iter().filter(|&&r| !r).count();
+    faces
 }

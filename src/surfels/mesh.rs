@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::{Surfel, DEFAULT_GREY, MAX_SURFEL_BUDGET};
 use crate::error::{Error, Result};
-use crate::math::{outer3, Sym2};
+use crate::math::{outer3, MortonCurve, Sym2};
 
 /// A triangle mesh: vertex positions and triangles as indices into them, each wound
 /// counter-clockwise seen from the side its normal points to.
@@ -176,31 +176,12 @@ pub fn from_mesh(mesh: &Mesh, samples: usize, centre: bool) -> Result<Vec<Surfel
     Ok(sampled.surfels)
 }
 
-/// Sorts faces along a Morton (Z-order) curve through their centroids, 21 bits per axis of the
-/// centroids' bounding cube; ties keep their order, so the result is the same on every run.
+/// Sorts faces along a Morton (Z-order) curve through their centroids; ties keep their order, so
+/// the result is the same on every run.
 fn sort_by_morton_order(faces: &mut [Face]) {
     let centroid = |f: &Face| f.corners.iter().sum::<DVec3>() / 3.0;
-    let (lo, hi) = faces
-        .iter()
-        .map(centroid)
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| {
-            (lo.min(c), hi.max(c))
-        });
-    let cells = f64::from((1u32 << 21) - 1);
-    let scale = cells / (hi - lo).max_element().max(f64::MIN_POSITIVE);
-    // Spreads the 21 low bits of `x` to every third bit.
-    let spread = |x: u64| {
-        let mut x = x & 0x1f_ffff;
-        x = (x | x << 32) & 0x1f_0000_0000_ffff;
-        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
-        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-        (x | x << 2) & 0x1249_2492_4924_9249
-    };
-    faces.par_sort_by_cached_key(|f| {
-        let q = ((centroid(f) - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(cells));
-        spread(q.x as u64) | spread(q.y as u64) << 1 | spread(q.z as u64) << 2
-    });
+    let curve = MortonCurve::around(faces.iter().map(centroid));
+    faces.par_sort_by_cached_key(|f| curve.key(centroid(f)));
 }
 
 /// Adds each face that got no piece to the nearest piece within `reach` that faces the same way
