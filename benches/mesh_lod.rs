@@ -67,12 +67,19 @@ fn scene_text(case: &Case, speed: f64, width: u32, sigma: f64) -> String {
     let keyframes = if case.turning {
         // The bunny's widest point is about 1.1 units from its axis.
         let degrees = (speed / (focal * 1.1 / depth)).to_degrees();
-        format!(
-            "[[object.keyframe]]\nt = 0\nscale = {s}\nrotate = {{ axis = [0, 1, 0], degrees = {a} }}\n[[object.keyframe]]\nt = 1\nscale = {s}\nrotate = {{ axis = [0, 1, 0], degrees = {b} }}\n",
-            s = case.scale,
-            a = -degrees / 2.0,
-            b = degrees / 2.0
-        )
+        // Keyframes at most 90° apart: a scene's rotations between keyframes must stay under
+        // 180° (at 270 px per shutter the bunny turns 188°).
+        let steps = (degrees / 90.0).ceil().max(1.0) as usize;
+        (0..=steps)
+            .map(|i| {
+                let t = i as f64 / steps as f64;
+                format!(
+                    "[[object.keyframe]]\nt = {t}\nscale = {s}\nrotate = {{ axis = [0, 1, 0], degrees = {a} }}\n",
+                    s = case.scale,
+                    a = degrees * (t - 0.5),
+                )
+            })
+            .collect::<String>()
     } else {
         let dx = speed * depth / focal;
         format!(
