@@ -91,6 +91,7 @@ pub(super) fn collapse_in_blocks(
     let seam_share =
         (seams.len() as u128 * (total - target_faces) as u128 / total as u128) as usize;
     let goal = target_faces + 2 * seam_share;
+    let mut last_round = None;
     loop {
         let in_blocks: usize = collapsers.iter().map(|(c, _)| c.live_faces).sum();
         let live = seams.len() + in_blocks;
@@ -107,6 +108,12 @@ pub(super) fn collapse_in_blocks(
         else {
             break;
         };
+        // A round that neither collapsed nor emptied the cheapest bin would repeat itself: the
+        // cheapest edge is in a block whose share rounds down to nothing.
+        if last_round == Some((live, cheapest)) {
+            break;
+        }
+        last_round = Some((live, cheapest));
         let below = Heap::quarter_octave_past(cheapest);
         collapsers.par_iter_mut().for_each(|(c, _)| {
             let share = (allowed as u128 * c.live_faces as u128 / in_blocks as u128) as usize;
