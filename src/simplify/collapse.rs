@@ -28,7 +28,8 @@ pub const MAX_TURN_DEGREES: f64 = 80.0;
 /// Largest turn of a face's normal from its normal in the input, degrees. Each collapse may turn a
 /// face by up to [`MAX_TURN_DEGREES`], and turns add up: at 90° from the input, needles standing
 /// across the surface were left on the bunny (one face facing away from the input surface nearest
-/// it); at 60° none, at the same mean distance to the input (docs/math.md, "Mesh simplification").
+/// it); at 60° none, at the same mean distance to the input (docs/math.md, "Mesh simplification
+/// and its level of detail").
 pub const MAX_DRIFT_DEGREES: f64 = 60.0;
 
 /// Most faces one vertex may gather (see the module notes).
