@@ -12,6 +12,8 @@
 //! The blocks depend on the vertex count alone, never on the thread count, so the result does
 //! not either.
 
+use std::ops::Range;
+
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -49,6 +51,9 @@ pub(super) fn collapse_in_blocks(
     }
     let size = n.div_ceil(blocks);
     let block_of = |v: u32| v as usize / size;
+    let ranges: Vec<Range<usize>> = (0..blocks)
+        .map(|k| (k * size).min(n)..(k * size + size).min(n))
+        .collect();
 
     // Faces within one block, by block, with their place in `faces`; the rest are seams, counted
     // at their corners.
@@ -58,7 +63,7 @@ pub(super) fn collapse_in_blocks(
     for (f, face) in faces.iter().enumerate() {
         let k = block_of(face[0]);
         if face.iter().all(|&v| block_of(v) == k) {
-            within[k].push((face.map(|v| v - (k * size) as u32), f as u32));
+            within[k].push((face.map(|v| v - ranges[k].start as u32), f as u32));
         } else {
             seams.push((*face, f as u32));
             for &v in face {
@@ -69,15 +74,14 @@ pub(super) fn collapse_in_blocks(
     let total = faces.len();
     drop(faces);
 
-    let mut collapsers: Vec<(Collapser, Vec<u32>)> = split(vertices, size)
+    let mut collapsers: Vec<(Collapser, Vec<u32>)> = split(vertices, channels, &ranges)
         .into_par_iter()
         .zip(within)
-        .enumerate()
-        .map(|(k, (vertices, within))| {
-            let range = k * size..(k * size + size).min(n);
+        .zip(&ranges)
+        .map(|((vertices, within), range)| {
             let (local, places): (Vec<[u32; 3]>, Vec<u32>) = within.into_iter().unzip();
             let normals = places.iter().map(|&f| first_normals[f as usize]).collect();
-            let elsewhere = seam_faces[range].to_vec();
+            let elsewhere = seam_faces[range.clone()].to_vec();
             let collapser =
                 Collapser::new(vertices, local, normals, elsewhere, channels, direction);
             (collapser, places)
@@ -124,11 +128,11 @@ pub(super) fn collapse_in_blocks(
     let mut stats = Stats::default();
     let mut parts = Vec::with_capacity(collapsers.len());
     let mut live = seams;
-    for (k, (collapser, places)) in collapsers.into_iter().enumerate() {
+    for ((collapser, places), range) in collapsers.into_iter().zip(&ranges) {
         stats += collapser.stats;
         let (vertices, faces) = collapser.into_parts();
         parts.push(vertices);
-        let offset = (k * size) as u32;
+        let offset = range.start as u32;
         live.extend(
             faces
                 .into_iter()
@@ -139,14 +143,12 @@ pub(super) fn collapse_in_blocks(
     (join(parts), live, stats)
 }
 
-/// `vertices` cut into runs of `size` (the last may be shorter).
-fn split(vertices: Vertices, size: usize) -> Vec<Vertices> {
-    let n = vertices.positions.len();
-    let channels = vertices.carried.len() / n.max(1);
-    let runs = n.div_ceil(size);
-    (0..runs)
-        .map(|k| {
-            let range = k * size..(k * size + size).min(n);
+/// `vertices` (with `channels` carried numbers each) cut into the runs `ranges`.
+fn split(vertices: Vertices, channels: usize, ranges: &[Range<usize>]) -> Vec<Vertices> {
+    ranges
+        .iter()
+        .map(|range| {
+            let range = range.clone();
             Vertices {
                 positions: vertices.positions[range.clone()].to_vec(),
                 quadrics: vertices.quadrics[range.clone()].to_vec(),

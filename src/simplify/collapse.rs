@@ -321,7 +321,7 @@ impl Collapser {
         progress(self.live_faces);
     }
 
-    /// The heap entry for edge (a, b), or `None` when neither end may move.
+    /// The heap entry for edge (a, b), or `None` when it may not collapse (see `placement`).
     fn candidate(&self, a: u32, b: u32) -> Option<(f64, Entry)> {
         let (cost, _) = self.placement(a as usize, b as usize)?;
         let stamp = self.version[a as usize] + self.version[b as usize];
@@ -330,7 +330,7 @@ impl Collapser {
 
     /// Where the merged vertex of edge (a, b) goes and what that costs: the quadric's minimum,
     /// or when the quadric is singular the cheapest of the two ends and the middle (§4); a
-    /// locked end stays put.
+    /// locked end stays put. `None` when both ends are locked or either has faces elsewhere.
     fn placement(&self, a: usize, b: usize) -> Option<(f64, DVec3)> {
         if !self.faces_elsewhere.is_empty()
             && (self.faces_elsewhere[a] > 0 || self.faces_elsewhere[b] > 0)

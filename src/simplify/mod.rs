@@ -172,35 +172,16 @@ pub fn simplify(
     // The collapser works on the vertices in curve order; what it is given per input vertex is
     // taken from each position's first vertex.
     let (motions, direction) = match &options.weighting {
-        Weighting::PerVertex(motions) => (
-            order
-                .original
-                .iter()
-                .map(|&v| motions[v as usize])
-                .collect(),
-            None,
-        ),
+        Weighting::PerVertex(motions) => (order.gather(motions, 1), None),
         Weighting::Direction(d) => (Vec::new(), Some(*d)),
         Weighting::Isotropic => (Vec::new(), None),
     };
-    let limits = options.limits.as_ref().map(|l| {
-        order
-            .original
-            .iter()
-            .map(|&v| l.per_vertex[v as usize])
-            .collect()
-    });
-    let carried_in = order
-        .original
-        .iter()
-        .flat_map(|&v| &values[v as usize * channels..(v as usize + 1) * channels])
-        .copied()
-        .collect();
-    let positions: Vec<DVec3> = order
-        .original
-        .iter()
-        .map(|&v| mesh.positions[v as usize])
-        .collect();
+    let limits = options
+        .limits
+        .as_ref()
+        .map(|l| order.gather(&l.per_vertex, 1));
+    let carried_in = order.gather(values, channels);
+    let positions = order.gather(&mesh.positions, 1);
     let normals = first_normals(&positions, &faces);
     let (vertices, non_manifold_edges) =
         Vertices::new(positions, &faces, carried_in, motions, limits);
@@ -287,6 +268,16 @@ impl VertexOrder {
             place[v as usize] = original.len() as u32 - 1;
         }
         VertexOrder { original, place }
+    }
+
+    /// Per-vertex values given in input order (`per` of them per vertex), in curve order: each
+    /// position's first vertex's.
+    fn gather<T: Copy>(&self, values: &[T], per: usize) -> Vec<T> {
+        self.original
+            .iter()
+            .flat_map(|&v| &values[v as usize * per..(v as usize + 1) * per])
+            .copied()
+            .collect()
     }
 }
 

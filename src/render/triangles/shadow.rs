@@ -201,8 +201,7 @@ impl ShadowMap {
         let Receiver {
             path: [p0, p1],
             normal,
-            span: [t0, t1],
-            own,
+            ..
         } = *receiver;
         let (Some((a, d0)), Some((b, d1))) = (self.locate(p0), self.locate(p1)) else {
             return false;
@@ -215,15 +214,9 @@ impl ShadowMap {
         let lit = |x: i64, y: i64| {
             let index = (y * side + x) as usize;
             f64::from(self.nearest[index]) >= limit
-                || self.texel(x, y).iter().all(|o| {
-                    o.id == own
-                        || o.piece.t[1] < t0
-                        || o.piece.t[0] > t1
-                        || o.piece
-                            .depth_at(o.piece.t[0].max(t0))
-                            .min(o.piece.depth_at(o.piece.t[1].min(t1)))
-                            >= limit
-                })
+                || self
+                    .others_during(x, y, receiver)
+                    .all(|(o, [a0, a1])| o.piece.depth_at(a0).min(o.piece.depth_at(a1)) >= limit)
         };
         let (lo, hi) = if a.y <= b.y { (a, b) } else { (b, a) };
         // A lookup at (x, y) reads texels ⌊x⌋, ⌊x⌋ + 1 of rows ⌊y⌋, ⌊y⌋ + 1: row r is read by the
@@ -254,6 +247,22 @@ impl ShadowMap {
     }
 
     /// The occluder list of texel (x, y); empty outside the map.
+    /// The occluder pieces of texel (x, y) from triangles other than `receiver`'s own that
+    /// overlap its span, each with the times they overlap.
+    fn others_during<'m>(
+        &'m self,
+        x: i64,
+        y: i64,
+        receiver: &'m Receiver,
+    ) -> impl Iterator<Item = (&'m Occluder, [f64; 2])> + 'm {
+        let [t0, t1] = receiver.span;
+        self.texel(x, y)
+            .iter()
+            .filter(move |o| o.id != receiver.own)
+            .map(move |o| (o, [o.piece.t[0].max(t0), o.piece.t[1].min(t1)]))
+            .filter(|(_, [a0, a1])| a0 <= a1)
+    }
+
     fn texel(&self, x: i64, y: i64) -> &[Occluder] {
         let camera = &self.occluders.camera;
         if x < 0 || y < 0 || x >= i64::from(camera.width) || y >= i64::from(camera.height) {
@@ -408,16 +417,15 @@ impl ShadowMap {
     /// For a `receiver` moving within one texel footprint, every time in its span at which its
     /// visibility changes (appended to `out`): in each of its four texels, the ends of the runs
     /// of time during which some other triangle's occluder lies nearer than the receiver's depth
-    /// limit. Within an
-    /// occluder piece both depths are linear in time, so the part of it that occludes is one
-    /// interval, found exactly; touching parts merge into runs, so a long train of occluder
-    /// pieces (a surface turning over the texel) costs two cuts, not one per piece.
+    /// limit. Within an occluder piece both depths are linear in time, so the part of it that
+    /// occludes is one interval, found exactly; touching parts merge into runs, so a long train
+    /// of occluder pieces (a surface turning over the texel) costs two cuts, not one per piece.
     pub fn breakpoints(&self, receiver: &Receiver, out: &mut Vec<f64>) {
         let Receiver {
             path: [p0, p1],
             normal,
             span: [t0, t1],
-            own,
+            ..
         } = *receiver;
         let (Some((_, d0)), Some((_, d1)), Some((middle, _))) = (
             self.locate(p0),
@@ -433,11 +441,7 @@ impl ShadowMap {
         // The footprint of the middle: a traced receiver's piece starts on a grid line.
         for ((x, y), _) in Self::footprint(middle) {
             let mut run: Option<[f64; 2]> = None;
-            for o in self.texel(x, y).iter().filter(|o| o.id != own) {
-                let (a0, a1) = (o.piece.t[0].max(t0), o.piece.t[1].min(t1));
-                if a1 < a0 {
-                    continue;
-                }
+            for (o, [a0, a1]) in self.others_during(x, y, receiver) {
                 // The part of [a0, a1] where the occluder is nearer than the limit.
                 let g0 = o.piece.depth_at(a0) - limit(a0);
                 let g1 = o.piece.depth_at(a1) - limit(a1);
