@@ -9,9 +9,9 @@
 //!    simplification excluded and included (Zhang's Fig. 7: (T_full − T_lod) / T_lod; here as
 //!    the plain ratio T_full / T_lod).
 //!
-//! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS]`, by default `320 7.3,1,0.3
-//! 10,30,90,270`. Reads the
-//! meshes from `../shared/data/meshes/`.
+//! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS] [REPEATS]`, by default `320
+//! 7.3,1,0.3 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders.
+//! Reads the meshes from `../shared/data/meshes/`.
 
 mod common;
 
@@ -95,24 +95,45 @@ fn scene_text(case: &Case, speed: f64, width: u32, sigma: f64) -> String {
     )
 }
 
-/// The image, the plan's time (with any simplification), the render's time, and the faces the
-/// first object was drawn with.
-fn timed_render(
-    scene: &Scene,
-    method: &Method,
-    lod: Lod,
-) -> streak::Result<(Framebuffer, f64, f64, usize)> {
-    let start = Instant::now();
-    let plan = Plan::with_lod(scene, method, lod)?;
-    let planned = start.elapsed().as_secs_f64();
-    let image = plan.render(None).image;
-    let faces = plan.mesh_of(0).map_or(0, |m| m.triangles.len());
-    Ok((
+/// A render timed: the image, the first plan's time (with any simplification), the median
+/// plan's time over the repeats (with the simplification cached after the first), the median
+/// render's time, and the faces the first object was drawn with. Medians, because one render
+/// alone also times first touches of memory and whatever else this machine does at that moment.
+struct Timed {
+    image: Framebuffer,
+    first_plan: f64,
+    plan: f64,
+    render: f64,
+    faces: usize,
+}
+
+fn timed_render(scene: &Scene, method: &Method, lod: Lod, repeats: usize) -> streak::Result<Timed> {
+    let mut plans = Vec::with_capacity(repeats);
+    let mut renders = Vec::with_capacity(repeats);
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let start = Instant::now();
+        let plan = Plan::with_lod(scene, method, lod)?;
+        let planned = start.elapsed().as_secs_f64();
+        let image = plan.render(None).image;
+        plans.push(planned);
+        renders.push(start.elapsed().as_secs_f64() - planned);
+        last = Some((image, plan.mesh_of(0).map_or(0, |m| m.triangles.len())));
+    }
+    let (image, faces) = last.expect("at least one render");
+    let first_plan = plans[0];
+    Ok(Timed {
         image,
-        planned,
-        start.elapsed().as_secs_f64() - planned,
+        first_plan,
+        plan: median(plans),
+        render: median(renders),
         faces,
-    ))
+    })
+}
+
+fn median(mut times: Vec<f64>) -> f64 {
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
 }
 
 fn flip(test: &Framebuffer, reference: &Framebuffer) -> f64 {
@@ -130,6 +151,7 @@ fn main() -> streak::Result<()> {
         .split(',')
         .map(|s| s.parse().expect("SPEEDS are px per shutter"))
         .collect();
+    let repeats: usize = arg(3, "3").parse().expect("REPEATS is a count");
     println!(
         "{} thread(s), {width} px wide",
         rayon::current_num_threads()
@@ -141,7 +163,7 @@ fn main() -> streak::Result<()> {
                 &scene_text(case, speed, width, sigmas[0]),
                 Path::new("bench.toml"),
             )?;
-            let (full, _, full_time, _) = timed_render(&scene, &Method::ANALYTIC, Lod::Off)?;
+            let full = timed_render(&scene, &Method::ANALYTIC, Lod::Off, repeats)?;
             let object = &scene.objects[0];
             let mesh = object.mesh().expect("a triangle object");
             let input = Mesh {
@@ -152,9 +174,10 @@ fn main() -> streak::Result<()> {
             let shutter = [scene.shutter.open, scene.shutter.close];
             let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter).motion;
             let mut line = format!(
-                "{} at {speed} px/shutter: full {} faces, analytic {full_time:.2} s; at {target} faces ꟻLIP vs full:",
+                "{} at {speed} px/shutter: full {} faces, analytic {:.2} s; at {target} faces ꟻLIP vs full:",
                 case.name,
-                mesh.triangles.len()
+                mesh.triangles.len(),
+                full.render
             );
             for (label, weighting) in [
                 ("isotropic", Weighting::Isotropic),
@@ -179,27 +202,30 @@ fn main() -> streak::Result<()> {
                     object.surfels().to_vec(),
                     object.motion.clone(),
                 );
-                let (image, ..) = timed_render(&variant, &Method::ANALYTIC, Lod::Off)?;
-                line += &format!(" {label} {:.4}", flip(&image, &full));
+                let simplified = timed_render(&variant, &Method::ANALYTIC, Lod::Off, 1)?;
+                line += &format!(" {label} {:.4}", flip(&simplified.image, &full.image));
             }
             println!("{line}");
-            let (blur_full, _, blur_full_time, _) = timed_render(&scene, &Method::BLUR, Lod::Off)?;
+            let blur_full = timed_render(&scene, &Method::BLUR, Lod::Off, repeats)?;
             for &sigma in &sigmas {
                 let scene = Scene::parse(
                     &scene_text(case, speed, width, sigma),
                     Path::new("bench.toml"),
                 )?;
-                let (image, plan_time, render_time, faces) =
-                    timed_render(&scene, &Method::ANALYTIC, Lod::Auto)?;
-                let (blur, blur_plan, blur_render, _) =
-                    timed_render(&scene, &Method::BLUR, Lod::Auto)?;
+                let lod = timed_render(&scene, &Method::ANALYTIC, Lod::Auto, repeats)?;
+                let blur = timed_render(&scene, &Method::BLUR, Lod::Auto, repeats)?;
                 println!(
-                    "  σ₁ = {sigma}: {faces} faces, simplify+plan {plan_time:.3} s; analytic ꟻLIP {:.4}, speed-up {:.1}× without, {:.1}× with the simplification; blur ꟻLIP {:.4}, speed-up {:.1}× (plan, cached: {blur_plan:.3} s)",
-                    flip(&image, &full),
-                    full_time / render_time,
-                    full_time / (render_time + plan_time),
-                    flip(&blur, &blur_full),
-                    blur_full_time / (blur_render + blur_plan),
+                    "  σ₁ = {sigma}: {} faces, simplify+plan {:.3} s; analytic ꟻLIP {:.4}, speed-up {:.1}× without, {:.1}× with the simplification; blur ꟻLIP {:.4}, speed-up {:.1}× (blur {:.3} s, LOD {:.3} s + plan, cached, {:.3} s)",
+                    lod.faces,
+                    lod.first_plan,
+                    flip(&lod.image, &full.image),
+                    full.render / lod.render,
+                    full.render / (lod.render + lod.first_plan),
+                    flip(&blur.image, &blur_full.image),
+                    blur_full.render / (blur.render + blur.plan),
+                    blur_full.render,
+                    blur.render,
+                    blur.plan,
                 );
             }
         }
