@@ -17,7 +17,7 @@ use std::ops::Range;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::collapse::{Collapser, Vertices};
+use super::collapse::{Collapser, Edges, Vertices};
 use super::heap::Heap;
 use super::Stats;
 
@@ -29,25 +29,41 @@ pub const BLOCK_VERTICES: usize = 8192;
 /// mesh.
 pub const MAX_BLOCKS: usize = 64;
 
-/// Collapse `faces` over `vertices` (with their `first_normals`) towards `target_faces` in
-/// parallel blocks, leaving for a single collapser the seams' share of the reduction. Returns the
-/// vertices (in place: dead ones are simply no longer used), the live faces in the order given
-/// with their places in `faces`, and what the blocks counted. A mesh too small for two blocks
-/// comes back as it went in.
+/// What the blocks leave for the single collapser.
+pub(super) struct Blocked {
+    /// The vertices, in place: dead ones are simply no longer used.
+    pub vertices: Vertices,
+    /// The live faces in the order given, with their places among the faces given.
+    pub faces: Vec<([u32; 3], u32)>,
+    /// The edges given, if still those of the faces (no block ran).
+    pub edges: Option<Edges>,
+    /// What the blocks counted.
+    pub stats: Stats,
+}
+
+/// Collapse `faces` over `vertices` (with their `first_normals` and `edges`) towards
+/// `target_faces` in parallel blocks, leaving for a single collapser the seams' share of the
+/// reduction. A mesh too small for two blocks comes back as it went in.
+#[allow(clippy::too_many_arguments)] // One call; the mesh's parts and the collapse's settings.
 pub(super) fn collapse_in_blocks(
     vertices: Vertices,
     faces: Vec<[u32; 3]>,
+    edges: Edges,
     first_normals: &[Vec3],
     target_faces: usize,
     channels: usize,
     direction: Option<DVec3>,
     progress: &mut dyn FnMut(usize),
-) -> (Vertices, Vec<([u32; 3], u32)>, Stats) {
+) -> Blocked {
     let n = vertices.positions.len();
     let blocks = (n / BLOCK_VERTICES).min(MAX_BLOCKS);
     if blocks < 2 || faces.len() <= target_faces {
-        let faces = faces.into_iter().zip(0..).collect();
-        return (vertices, faces, Stats::default());
+        return Blocked {
+            vertices,
+            faces: faces.into_iter().zip(0..).collect(),
+            edges: Some(edges),
+            stats: Stats::default(),
+        };
     }
     let size = n.div_ceil(blocks);
     let block_of = |v: u32| v as usize / size;
@@ -82,8 +98,10 @@ pub(super) fn collapse_in_blocks(
             let (local, places): (Vec<[u32; 3]>, Vec<u32>) = within.into_iter().unzip();
             let normals = places.iter().map(|&f| first_normals[f as usize]).collect();
             let elsewhere = seam_faces[range.clone()].to_vec();
-            let collapser =
-                Collapser::new(vertices, local, normals, elsewhere, channels, direction);
+            let edges = Some(edges.within(range.clone()));
+            let collapser = Collapser::new(
+                vertices, local, normals, elsewhere, edges, channels, direction,
+            );
             (collapser, places)
         })
         .collect();
@@ -140,7 +158,12 @@ pub(super) fn collapse_in_blocks(
         );
     }
     live.par_sort_unstable_by_key(|&(_, place)| place);
-    (join(parts), live, stats)
+    Blocked {
+        vertices: join(parts),
+        faces: live,
+        edges: None,
+        stats,
+    }
 }
 
 /// `vertices` (with `channels` carried numbers each) cut into the runs `ranges`.

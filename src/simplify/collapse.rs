@@ -93,14 +93,14 @@ pub(super) struct Vertices {
 impl Vertices {
     /// The vertices of `faces` over `positions` (all indices valid, no face with a repeated
     /// corner) before any collapse: each one's quadric, boundary and lock from the faces around
-    /// it; and how many edges have more than two faces.
+    /// it; the edges (see [`Edges`]); and how many edges have more than two faces.
     pub fn new(
         positions: Vec<DVec3>,
         faces: &[[u32; 3]],
         carried: Vec<f32>,
         motions: Vec<DVec3>,
         limits: Option<Vec<f64>>,
-    ) -> (Vertices, usize) {
+    ) -> (Vertices, Edges, usize) {
         let n = positions.len();
         let around = FacesAround::new(n, faces);
         let face_plane = |f: usize| {
@@ -125,7 +125,8 @@ impl Vertices {
         let mut boundary = vec![false; n];
         let mut locked = vec![false; n];
         let mut non_manifold_edges = 0;
-        for [v, w, shared] in around.edges(faces) {
+        let edges = around.edges(faces);
+        for &[v, w, shared] in &edges {
             let (v, w) = (v as usize, w as usize);
             if shared > 2 {
                 non_manifold_edges += 1;
@@ -162,7 +163,25 @@ impl Vertices {
             motions,
             limits,
         };
-        (vertices, non_manifold_edges)
+        let edges = edges.into_iter().map(|[v, w, _]| [v, w]).collect();
+        (vertices, Edges(edges), non_manifold_edges)
+    }
+}
+
+/// Each edge of a mesh once, as its two ends, the lower-numbered first, ordered by that end.
+pub(super) struct Edges(pub Vec<[u32; 2]>);
+
+impl Edges {
+    /// The edges with both ends in `range`, renumbered from its start.
+    pub fn within(&self, range: std::ops::Range<usize>) -> Edges {
+        let below = |end: usize| self.0.partition_point(|e| (e[0] as usize) < end);
+        let start = range.start as u32;
+        let inside = self.0[below(range.start)..below(range.end)]
+            .iter()
+            .filter(|e| (e[1] as usize) < range.end)
+            .map(|e| e.map(|v| v - start))
+            .collect();
+        Edges(inside)
     }
 }
 
@@ -241,12 +260,14 @@ pub(super) struct Collapser {
 impl Collapser {
     /// Queue every edge of `faces` over `vertices` (all indices valid, no face with a repeated
     /// corner; `first_normals` one per face, see [`first_normals`]) whose ends have no
-    /// `faces_elsewhere` (empty: none has).
+    /// `faces_elsewhere` (empty: none has). `edges`, when given, are those of `faces` or more
+    /// (edges whose faces are all elsewhere are never candidates); otherwise they are found here.
     pub fn new(
         vertices: Vertices,
         faces: Vec<[u32; 3]>,
         first_normals: Vec<Vec3>,
         faces_elsewhere: Vec<u32>,
+        edges: Option<Edges>,
         channels: usize,
         direction: Option<DVec3>,
     ) -> Collapser {
@@ -254,7 +275,16 @@ impl Collapser {
         let mut around = FacesAround::new(n, &faces);
         // Merged vertices' lists are appended: room for about as many again as there are.
         around.refs.reserve(around.refs.len());
-        let edges = around.edges(&faces);
+        let edges = edges.map_or_else(
+            || {
+                around
+                    .edges(&faces)
+                    .into_iter()
+                    .map(|[v, w, _]| [v, w])
+                    .collect()
+            },
+            |edges| edges.0,
+        );
         let mut collapser = Collapser {
             live_faces: faces.len(),
             face_alive: vec![true; faces.len()],
@@ -275,7 +305,7 @@ impl Collapser {
         let this = &collapser;
         let entries: Vec<(f64, Entry)> = edges
             .par_iter()
-            .filter_map(|&[v, w, _]| this.candidate(v, w))
+            .filter_map(|&[v, w]| this.candidate(v, w))
             .collect();
         collapser.heap.extend(entries);
         collapser

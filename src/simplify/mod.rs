@@ -183,22 +183,31 @@ pub fn simplify(
     let carried_in = order.gather(values, channels);
     let positions = order.gather(&mesh.positions, 1);
     let normals = first_normals(&positions, &faces);
-    let (vertices, non_manifold_edges) =
+    let (vertices, edges, non_manifold_edges) =
         Vertices::new(positions, &faces, carried_in, motions, limits);
     repairs.non_manifold_edges = non_manifold_edges;
     let target = options.target_faces;
-    let (vertices, faces, in_blocks) = blocks::collapse_in_blocks(
-        vertices, faces, &normals, target, channels, direction, progress,
+    let blocked = blocks::collapse_in_blocks(
+        vertices, faces, edges, &normals, target, channels, direction, progress,
     );
-    let (faces, normals) = faces
+    let (faces, normals) = blocked
+        .faces
         .into_iter()
         .map(|(face, place)| (face, normals[place as usize]))
         .unzip();
-    let mut collapser = Collapser::new(vertices, faces, normals, Vec::new(), channels, direction);
+    let mut collapser = Collapser::new(
+        blocked.vertices,
+        faces,
+        normals,
+        Vec::new(),
+        blocked.edges,
+        channels,
+        direction,
+    );
     collapser.run(target, usize::MAX, progress);
     let reached_target = collapser.live_faces <= target;
     let mut stats = collapser.stats;
-    stats += in_blocks;
+    stats += blocked.stats;
     let (vertices, faces) = collapser.into_parts();
 
     // Keep the vertices live faces use, in input order.
@@ -285,18 +294,16 @@ impl VertexOrder {
 /// face. The duplicate search sorts (in parallel) rather than hashes: on a 1.6 M-face mesh
 /// hashing took a tenth of the whole simplification.
 fn repaired_faces(mesh: &Mesh, order: &VertexOrder, repairs: &mut Repairs) -> Vec<[u32; 3]> {
-    let mut faces: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
-    for t in &mesh.triangles {
-        let t = t.map(|v| order.place[v as usize]);
-        if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
-            repairs.repeated_corners += 1;
-        } else {
-            faces.push(t);
-        }
-    }
+    let mut faces: Vec<[u32; 3]> = mesh
+        .triangles
+        .par_iter()
+        .map(|t| t.map(|v| order.place[v as usize]))
+        .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
+        .collect();
+    repairs.repeated_corners = mesh.triangles.len() - faces.len();
     // A face repeating an earlier one's vertices (in any order) is dropped, the first kept.
     let mut by_corners: Vec<([u32; 3], u32)> = faces
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(f, t)| {
             let mut sorted = *t;
