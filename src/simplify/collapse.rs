@@ -92,17 +92,17 @@ pub(super) struct Vertices {
 
 impl Vertices {
     /// The vertices of `faces` over `positions` (all indices valid, no face with a repeated
-    /// corner) before any collapse: each one's quadric, boundary and lock from the faces around
-    /// it; the edges (see [`Edges`]); and how many edges have more than two faces.
+    /// corner; `around` them) before any collapse: each one's quadric, boundary and lock from the
+    /// faces around it; the edges (see [`Edges`]); and how many edges have more than two faces.
     pub fn new(
         positions: Vec<DVec3>,
         faces: &[[u32; 3]],
+        around: &FacesAround,
         carried: Vec<f32>,
         motions: Vec<DVec3>,
         limits: Option<Vec<f64>>,
     ) -> (Vertices, Edges, usize) {
         let n = positions.len();
-        let around = FacesAround::new(n, faces);
         let face_plane = |f: usize| {
             let [a, b, c] = faces[f].map(|i| positions[i as usize]);
             ((b - a).cross(c - a), a)
@@ -186,21 +186,23 @@ impl Edges {
 }
 
 /// The faces around each vertex, as one list: `refs[start[v]..start[v] + count[v]]`.
-struct FacesAround {
+pub(super) struct FacesAround {
     refs: Vec<u32>,
     start: Vec<usize>,
     count: Vec<u32>,
 }
 
 impl FacesAround {
-    fn new(vertices: usize, faces: &[[u32; 3]]) -> FacesAround {
+    /// The faces around each of `vertices` (all of `faces`' corners among them).
+    pub fn new(vertices: usize, faces: &[[u32; 3]]) -> FacesAround {
         let (mut start, refs) = faces_around(vertices, faces);
         let count = start.windows(2).map(|w| (w[1] - w[0]) as u32).collect();
         start.pop();
         FacesAround { refs, start, count }
     }
 
-    fn of(&self, v: usize) -> &[u32] {
+    /// The faces around `v`.
+    pub fn of(&self, v: usize) -> &[u32] {
         &self.refs[self.start[v]..self.start[v] + self.count[v] as usize]
     }
 
