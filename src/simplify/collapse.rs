@@ -163,8 +163,7 @@ impl Vertices {
             motions,
             limits,
         };
-        let edges = edges.into_iter().map(|[v, w, _]| [v, w]).collect();
-        (vertices, Edges(edges), non_manifold_edges)
+        (vertices, Edges::from_counted(edges), non_manifold_edges)
     }
 }
 
@@ -172,6 +171,11 @@ impl Vertices {
 pub(super) struct Edges(pub Vec<[u32; 2]>);
 
 impl Edges {
+    /// The edges of [`FacesAround::edges`], without their face counts.
+    fn from_counted(counted: Vec<[u32; 3]>) -> Edges {
+        Edges(counted.into_iter().map(|[v, w, _]| [v, w]).collect())
+    }
+
     /// The edges with both ends in `range`, renumbered from its start.
     pub fn within(&self, range: std::ops::Range<usize>) -> Edges {
         let below = |end: usize| self.0.partition_point(|e| (e[0] as usize) < end);
@@ -277,16 +281,7 @@ impl Collapser {
         let mut around = FacesAround::new(n, &faces);
         // Merged vertices' lists are appended: room for about as many again as there are.
         around.refs.reserve(around.refs.len());
-        let edges = edges.map_or_else(
-            || {
-                around
-                    .edges(&faces)
-                    .into_iter()
-                    .map(|[v, w, _]| [v, w])
-                    .collect()
-            },
-            |edges| edges.0,
-        );
+        let Edges(edges) = edges.unwrap_or_else(|| Edges::from_counted(around.edges(&faces)));
         let mut collapser = Collapser {
             live_faces: faces.len(),
             face_alive: vec![true; faces.len()],

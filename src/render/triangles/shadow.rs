@@ -246,7 +246,6 @@ impl ShadowMap {
         Some((screen - DVec2::splat(0.5), depth))
     }
 
-    /// The occluder list of texel (x, y); empty outside the map.
     /// The occluder pieces of texel (x, y) from triangles other than `receiver`'s own that
     /// overlap its span, each with the times they overlap.
     fn others_during<'m>(
@@ -263,6 +262,7 @@ impl ShadowMap {
             .filter(|(_, [a0, a1])| a0 <= a1)
     }
 
+    /// The occluder list of texel (x, y); empty outside the map.
     fn texel(&self, x: i64, y: i64) -> &[Occluder] {
         let camera = &self.occluders.camera;
         if x < 0 || y < 0 || x >= i64::from(camera.width) || y >= i64::from(camera.height) {
