@@ -2,8 +2,8 @@
 //! size, reporting the median wall time and surfels per second (the figure issue 10 targets:
 //! `static` on the torus knot at 1024² on 2 threads).
 //!
-//! `cargo bench --bench raster -- [SCENE] [METHOD] [SIZE] [REPEATS]`, by default
-//! `gallery/torus_knot.toml static 1024 9`. Threads: `RAYON_NUM_THREADS`. Methods: `static`,
+//! `cargo bench --bench raster -- [SCENE] [METHOD] [SIZE] [REPEATS] [LOD]`, by default
+//! `gallery/torus_knot.toml static 1024 9 auto` (`LOD` is `auto` or `off`). Threads: `RAYON_NUM_THREADS`. Methods: `static`,
 //! `blur`, `kernel3d`, `reference:N`. Profile it with
 //! `perf record -g target/release/deps/raster-* gallery/torus_knot.toml static 1024 40`.
 
@@ -11,6 +11,7 @@ mod common;
 
 use std::time::Instant;
 
+use streak::lod::Lod;
 use streak::{Method, Plan};
 
 fn main() -> streak::Result<()> {
@@ -27,6 +28,11 @@ fn main() -> streak::Result<()> {
     };
     let size: u32 = arg(2, "1024").parse().expect("SIZE is a number of pixels");
     let repeats: usize = arg(3, "9").parse().expect("REPEATS is a count");
+    let lod = match arg(4, "auto").as_str() {
+        "auto" => Lod::Auto,
+        "off" => Lod::Off,
+        other => panic!("unknown LOD {other}: auto or off"),
+    };
 
     let (scene, height) = common::scene_at_width(&scene_path, size)?;
     let surfels = scene.surfel_count();
@@ -35,14 +41,14 @@ fn main() -> streak::Result<()> {
     let mut footprints = 0;
     for _ in 0..repeats.max(1) {
         let start = Instant::now();
-        let render = Plan::new(&scene, &method)?.render(None);
+        let render = Plan::with_lod(&scene, &method, lod)?.render(None);
         times.push(start.elapsed().as_secs_f64());
         footprints = render.stats.footprints;
     }
     times.sort_by(f64::total_cmp);
     let median = times[times.len() / 2];
     println!(
-        "{} {} at {size}×{height}, {} thread(s): median {:.4} s of {} (min {:.4} s), {surfels} surfels → {footprints} footprints, {:.2} M surfels/s",
+        "{} {} (LOD {lod:?}) at {size}×{height}, {} thread(s): median {:.4} s of {} (min {:.4} s), {surfels} surfels → {footprints} footprints, {:.2} M surfels/s",
         scene_path,
         method.name(),
         rayon::current_num_threads(),
