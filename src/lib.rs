@@ -49,6 +49,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 #![warn(missing_docs)]
 
+mod cache;
 pub mod error;
 pub mod framebuffer;
 #[cfg(feature = "cli")]

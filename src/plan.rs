@@ -7,6 +7,7 @@
 //! pieces, so that the renderers drop only the piece around the crossing. Derivation:
 //! docs/math.md, "Sub-segment planning".
 
+use crate::cache::Recent;
 use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
@@ -14,10 +15,12 @@ use crate::project::Culled;
 use crate::render::triangles::shadow::{light_camera, MAX_SHADOWED_LIGHTS};
 use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
 use crate::scene::camera::Camera;
+use crate::scene::motion::Motion;
 use crate::scene::{Object, Scene, TriangleMesh};
 use crate::simplify::speed::{self, DetailRule, ScreenMotion};
 use crate::surfels::{Colouring, Mesh, Surfel};
 use glam::{DVec2, DVec3};
+use std::sync::Arc;
 
 /// A sub-segment may be at most this many tolerances long on screen. One motion ellipse stands
 /// for a whole segment with a single Gaussian; a long one differs from the true streak (a box
@@ -763,6 +766,27 @@ fn plan_motion(
     }
 }
 
+/// What a moving mesh's level of detail depends on besides its method: the mesh, and how it is
+/// seen over the shutter. Equal views give equal screen speeds, so they share one simplification
+/// without measuring the speeds again.
+#[derive(PartialEq)]
+struct MeshView {
+    mesh_key: u64,
+    camera: Camera,
+    motion: Motion,
+    shutter: [f64; 2],
+    rule: DetailRule,
+}
+
+/// The simplified mesh and the range of its screen speeds (px per shutter) for each recent view.
+static SIMPLIFIED_IN_VIEW: Recent<MeshView, (speed::Shared, [f64; 2])> =
+    Recent::new(speed::CACHE_ENTRIES);
+
+/// Surfels resampled from recent simplified meshes, by mesh and count (sampling the bunny's
+/// 40 k took 15–20 ms of every plan).
+static RESAMPLED: Recent<(speed::Shared, usize), Arc<Vec<Surfel>>> =
+    Recent::new(speed::CACHE_ENTRIES);
+
 /// The level of detail of a moving triangle mesh for `method` (Zhang et al. 2014 §5, Appendix B):
 /// simplified as far as each vertex's screen speed allows for the shutter, drawn so by
 /// `analytic` and each `reference` frame, and resampled into surfels for `blur` and `kernel3d`
@@ -798,34 +822,58 @@ fn mesh_lod(
         ));
     }
     let shutter = [scene.shutter.open, scene.shutter.close];
-    let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
-    let limits = motion.limits(&scene.mesh_detail);
-    let speed_px = motion
-        .speed_px
-        .iter()
-        .fold([f64::INFINITY, 0.0], |[lo, hi], &v| [lo.min(v), hi.max(v)]);
-    // A mesh the simplifier cannot take (no face with an area left, say) is drawn as it is.
-    let Ok(shared) = speed::simplified(mesh, limits, motion.motion) else {
-        return Ok((MeshLod::Full("the simplifier could not take it"), None));
+    let mesh_key = speed::content_key(mesh);
+    let view = MeshView {
+        mesh_key,
+        camera: scene.camera.clone(),
+        motion: object.motion.clone(),
+        shutter,
+        rule: scene.mesh_detail,
     };
-    let simplified = &shared.0;
+    let (shared, speed_px) = match SIMPLIFIED_IN_VIEW.find(|v| *v == view) {
+        Some(found) => found,
+        None => {
+            let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
+            let limits = motion.limits(&scene.mesh_detail);
+            let speed_px = motion
+                .speed_px
+                .iter()
+                .fold([f64::INFINITY, 0.0], |[lo, hi], &v| [lo.min(v), hi.max(v)]);
+            // A mesh the simplifier cannot take (no face with an area left, say) is drawn as it
+            // is.
+            let Ok(shared) = speed::simplified(mesh, mesh_key, limits, motion.motion) else {
+                return Ok((MeshLod::Full("the simplifier could not take it"), None));
+            };
+            SIMPLIFIED_IN_VIEW.keep(view, (Arc::clone(&shared), speed_px));
+            (shared, speed_px)
+        }
+    };
     // The simplifier interpolates colours, so one colour stays exactly one.
     let surfels = if as_triangles {
         None
     } else {
         // As many surfels per face as the full mesh had.
-        let count = (object.surfels().len() as f64 * simplified.triangles.len() as f64
+        let count = (object.surfels().len() as f64 * shared.0.triangles.len() as f64
             / mesh.triangles.len() as f64)
             .ceil()
             .max(1.0) as usize;
-        let source = Mesh {
-            positions: simplified.positions.clone(),
-            triangles: simplified.triangles.clone(),
+        let resampled = match RESAMPLED.find(|(m, c)| Arc::ptr_eq(m, &shared) && *c == count) {
+            Some(found) => found,
+            None => {
+                let simplified = &shared.0;
+                let source = Mesh {
+                    positions: simplified.positions.clone(),
+                    triangles: simplified.triangles.clone(),
+                };
+                let colour = simplified.colours.first().copied().unwrap_or_default();
+                let mut surfels = crate::surfels::from_mesh(&source, count, false)?;
+                Colouring::Rgb(colour).apply(&mut surfels);
+                let surfels = Arc::new(surfels);
+                RESAMPLED.keep((Arc::clone(&shared), count), Arc::clone(&surfels));
+                surfels
+            }
         };
-        let colour = simplified.colours.first().copied().unwrap_or_default();
-        let mut surfels = crate::surfels::from_mesh(&source, count, false)?;
-        Colouring::Rgb(colour).apply(&mut surfels);
-        Some(surfels)
+        Some(resampled.to_vec())
     };
     let lod = MeshLod::Simplified {
         mesh: shared,

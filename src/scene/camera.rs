@@ -18,7 +18,7 @@ pub const DEFAULT_SPATIAL_SAMPLES: u32 = 4;
 pub const MAX_SPATIAL_SAMPLES: u32 = 64;
 
 /// A pinhole camera with its image size.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
     /// World → camera (view) transform.
     pub view: DAffine3,

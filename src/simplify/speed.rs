@@ -12,12 +12,13 @@
 //! simplify once.
 
 use std::hash::{BuildHasher, Hash, Hasher};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::{simplify, Limits, Options, Simplified, Stats, Weighting};
+use crate::cache::Recent;
 use crate::error::Result;
 use crate::scene::camera::Camera;
 use crate::scene::{Object, TriangleMesh};
@@ -171,15 +172,14 @@ impl ScreenMotion {
 /// A simplified mesh and what its collapse loop did, shared by the cache.
 pub type Shared = Arc<(TriangleMesh, Stats)>;
 
-type Cache = Vec<(u64, Shared)>;
-static CACHE: Mutex<Cache> = Mutex::new(Vec::new());
+static CACHE: Recent<u64, Shared> = Recent::new(CACHE_ENTRIES);
 
-/// `mesh` simplified as far as `limits` allow with edges weighted by the per-vertex `motion`,
-/// from the cache when it holds it. Colours are carried along; corner normals are made anew.
-pub fn simplified(mesh: &TriangleMesh, limits: Limits, motion: Vec<DVec3>) -> Result<Shared> {
-    // SipHash (std's default) took 5 ms per plan over the armadillo's 100 k faces, a tenth of a
-    // simplified render; foldhash takes under one.
-    let mut hasher = foldhash::quality::FixedState::default().build_hasher();
+/// A hash of everything in `mesh`, to tell meshes apart in caches. SipHash (std's default) took
+/// 5 ms per plan over the armadillo's 100 k faces, a tenth of a simplified render; foldhash
+/// takes a third of that.
+#[must_use]
+pub fn content_key(mesh: &TriangleMesh) -> u64 {
+    let mut hasher = hasher();
     for p in &mesh.positions {
         p.to_array().map(f64::to_bits).hash(&mut hasher);
     }
@@ -187,6 +187,24 @@ pub fn simplified(mesh: &TriangleMesh, limits: Limits, motion: Vec<DVec3>) -> Re
     for c in &mesh.colours {
         c.map(f32::to_bits).hash(&mut hasher);
     }
+    hasher.finish()
+}
+
+fn hasher() -> impl Hasher {
+    foldhash::quality::FixedState::default().build_hasher()
+}
+
+/// `mesh` (whose [`content_key`] is `mesh_key`) simplified as far as `limits` allow with edges
+/// weighted by the per-vertex `motion`, from the cache when it holds it. Colours are carried
+/// along; corner normals are made anew.
+pub fn simplified(
+    mesh: &TriangleMesh,
+    mesh_key: u64,
+    limits: Limits,
+    motion: Vec<DVec3>,
+) -> Result<Shared> {
+    let mut hasher = hasher();
+    mesh_key.hash(&mut hasher);
     for l in &limits.per_vertex {
         l.to_bits().hash(&mut hasher);
     }
@@ -198,8 +216,8 @@ pub fn simplified(mesh: &TriangleMesh, limits: Limits, motion: Vec<DVec3>) -> Re
             .hash(&mut hasher);
     }
     let key = hasher.finish();
-    if let Some((_, shared)) = lock().iter().find(|(k, _)| *k == key) {
-        return Ok(Arc::clone(shared));
+    if let Some(shared) = CACHE.find(|&k| k == key) {
+        return Ok(shared);
     }
     let options = Options {
         target_faces: 0,
@@ -223,17 +241,6 @@ pub fn simplified(mesh: &TriangleMesh, limits: Limits, motion: Vec<DVec3>) -> Re
         .collect();
     let triangles = TriangleMesh::from_parts(out.positions, out.triangles, colours)?;
     let shared = Arc::new((triangles, stats));
-    let mut cache = lock();
-    if cache.len() >= CACHE_ENTRIES {
-        cache.remove(0);
-    }
-    cache.push((key, Arc::clone(&shared)));
+    CACHE.keep(key, Arc::clone(&shared));
     Ok(shared)
-}
-
-fn lock() -> std::sync::MutexGuard<'static, Cache> {
-    // A panic elsewhere while holding the lock leaves a cache still valid to read.
-    CACHE
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
