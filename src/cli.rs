@@ -621,7 +621,7 @@ fn run_simplify(args: SimplifyArgs) -> Result<()> {
     );
     if !result.reached_target {
         report += &format!(
-            "  stopped above {target} faces: every remaining collapse would fold a face ({}), break the surface's topology ({}) or gather more than {MAX_VALENCE} faces on a vertex ({})\n",
+            "  stopped above {target} faces: every remaining collapse would fold a face, break the surface's topology or gather more than {MAX_VALENCE} faces on a vertex (refused attempts: {} folding, {} topology, {} valence)\n",
             result.stats.fold_refusals, result.stats.topology_refusals, result.stats.valence_refusals
         );
     }

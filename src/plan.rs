@@ -136,7 +136,7 @@ impl MeshLod {
             } => {
                 let (triangles, stats) = &**mesh;
                 format!(
-                    "mesh: {faces_in} faces → {} (screen speed {:.0}–{:.0} px per shutter; projected perimeters up to {} v + {} px; collapses refused: {} at the detail limit, {} folding, {} topology, {} valence){}",
+                    "mesh: {faces_in} faces → {} (screen speed {:.0}–{:.0} px per shutter; projected perimeters up to {} v + {} px; refused attempts to collapse: {} at the detail limit, {} folding, {} topology, {} valence){}",
                     triangles.triangles.len(),
                     speed_px[0],
                     speed_px[1],

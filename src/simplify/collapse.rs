@@ -42,18 +42,20 @@ const BOUNDARY_PENALTY: f64 = 100.0;
 /// How often, in collapses, the progress callback hears the face count.
 const PROGRESS_EVERY: usize = 8192;
 
-/// What the loop counted.
+/// What the loop counted. Refusals count attempts, not edges: an edge is tried again whenever
+/// the faces around it change, and the queue that finishes after the parallel blocks tries
+/// every edge left once more, so one edge may be refused several times.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
     /// Edges collapsed.
     pub collapses: usize,
-    /// Collapses refused because a face would fold over or vanish.
+    /// Attempts refused because a face would fold over or vanish.
     pub fold_refusals: usize,
-    /// Collapses refused by the link condition or a boundary pinch.
+    /// Attempts refused by the link condition or a boundary pinch.
     pub topology_refusals: usize,
-    /// Collapses refused because a vertex would gather more than [`MAX_VALENCE`] faces.
+    /// Attempts refused because a vertex would gather more than [`MAX_VALENCE`] faces.
     pub valence_refusals: usize,
-    /// Collapses refused because a face would grow past its detail limit.
+    /// Attempts refused because a face would grow past its detail limit.
     pub limit_refusals: usize,
 }
 
