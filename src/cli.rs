@@ -619,6 +619,11 @@ fn run_simplify(args: SimplifyArgs) -> Result<()> {
         result.mesh.triangles.len(),
         result.mesh.positions.len(),
     );
+    if result.mesh.triangles.len() + 1 == target {
+        report += &format!(
+            "  one below {target}: a collapse inside the surface takes two faces, and no edge on a boundary could take the last one (a closed surface always has an even count)\n"
+        );
+    }
     if !result.reached_target {
         report += &format!(
             "  stopped above {target} faces: every remaining collapse would fold a face, break the surface's topology or gather more than {MAX_VALENCE} faces on a vertex (refused attempts: {} folding, {} topology, {} valence)\n",

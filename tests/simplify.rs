@@ -190,6 +190,26 @@ fn a_flat_grid_collapses_to_two_triangles_on_its_corners() {
 }
 
 #[test]
+fn an_open_mesh_reaches_an_odd_target_exactly_and_a_closed_one_stops_one_below() {
+    // A collapse inside a surface takes two faces, one on a boundary takes one.
+    for target in [127, 77, 33, 9, 3] {
+        let out = run(&grid(8), target, Weighting::Isotropic);
+        assert_eq!(out.mesh.triangles.len(), target, "grid to {target}");
+        assert!(out.reached_target);
+        for &t in &out.mesh.triangles {
+            assert!(
+                face_normal(&out.mesh, t).z > 0.0,
+                "grid to {target}: a face flipped"
+            );
+        }
+    }
+    // A closed surface's face count is even (3F = 2E).
+    let out = run(&icosphere(2), 101, Weighting::Isotropic);
+    assert_eq!(out.mesh.triangles.len(), 100);
+    assert!(closed_manifold(&out.mesh));
+}
+
+#[test]
 fn a_cube_keeps_its_corners() {
     let out = run(&cube(4), 12, Weighting::Isotropic);
     assert_eq!(out.mesh.triangles.len(), 12);

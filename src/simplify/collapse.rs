@@ -350,6 +350,37 @@ impl Collapser {
         progress(self.live_faces);
     }
 
+    /// One face above `target_faces`, a collapse inside the surface would take two and end one
+    /// below: collapse instead the cheapest edge on a boundary that may collapse, which takes
+    /// one. Returns whether there was one (a closed mesh has none: its face count is even).
+    pub fn finish_on_boundary(&mut self, target_faces: usize) -> bool {
+        if self.live_faces != target_faces + 1 || !self.vertices.boundary.contains(&true) {
+            return false;
+        }
+        let on_boundary: Vec<Entry> = self
+            .heap
+            .in_order()
+            .filter(|e| {
+                let (a, b) = (e.a as usize, e.b as usize);
+                self.version[a] + self.version[b] == e.stamp
+                    && self.vertices.boundary[a]
+                    && self.vertices.boundary[b]
+                    && self
+                        .faces_of(a)
+                        .filter(|&f| self.faces[f].contains(&e.b))
+                        .count()
+                        == 1
+            })
+            .collect();
+        for e in on_boundary {
+            if self.try_collapse(e.a as usize, e.b as usize) {
+                self.stats.collapses += 1;
+                return true;
+            }
+        }
+        false
+    }
+
     /// The heap entry for edge (a, b), or `None` when it may not collapse (see `placement`).
     fn candidate(&self, a: u32, b: u32) -> Option<(f64, Entry)> {
         let (cost, _) = self.placement(a as usize, b as usize)?;

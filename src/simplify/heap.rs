@@ -105,6 +105,13 @@ impl Heap {
         Some(entry)
     }
 
+    /// Every queued entry, cheapest bin first and within a bin in the order `pop` takes them.
+    pub fn in_order(&self) -> impl Iterator<Item = Entry> + '_ {
+        self.bins[self.first * 64..]
+            .iter()
+            .flat_map(|bin| bin.iter().rev().copied())
+    }
+
     /// The bin one quarter of an octave of cost past `bin`.
     pub fn quarter_octave_past(bin: usize) -> usize {
         bin + (1 << (23 - BIN_SHIFT - 2))
@@ -142,10 +149,12 @@ mod tests {
                 },
             );
         }
+        let listed: Vec<u32> = heap.in_order().map(|e| e.a).collect();
         let mut popped = Vec::new();
         while let Some(e) = heap.pop(usize::MAX) {
             popped.push(e.a);
         }
         assert_eq!(popped, [6, 11, 3, 1, 8, 4, 0, 7, 10, 2, 5, 9]);
+        assert_eq!(listed, popped);
     }
 }

@@ -205,7 +205,13 @@ pub fn simplify(
         channels,
         direction,
     );
-    collapser.run(target, usize::MAX, progress);
+    // A face count one above the target is finished on a boundary edge if it can be, so that an
+    // open mesh reaches any target exactly.
+    let exact = target > 0;
+    collapser.run(target + usize::from(exact), usize::MAX, progress);
+    if !(exact && collapser.finish_on_boundary(target)) {
+        collapser.run(target, usize::MAX, progress);
+    }
     let reached_target = collapser.live_faces <= target;
     let mut stats = collapser.stats;
     stats += blocked.stats;
