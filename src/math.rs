@@ -253,6 +253,19 @@ impl MortonCurve {
     }
 }
 
+/// A fixed sequence of numbers in [0, 1) from `seed` (a 64-bit linear congruential generator),
+/// for tests that need many varied but repeatable inputs.
+#[cfg(test)]
+pub(crate) fn test_sequence(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1_u64 << 53) as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

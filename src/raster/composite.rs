@@ -384,13 +384,7 @@ mod tests {
         // Two hundred windows, from a fixed linear congruential sequence, half within
         // [0.05, 0.35] and half within [0.5, 0.75]: the bins between lie within the group's
         // bins but outside every window.
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::math::test_sequence(12345);
         let windows: Vec<([f64; 2], f32)> = (0..200)
             .map(|k| {
                 let start = if k % 2 == 0 { 0.05 } else { 0.5 } + 0.05 * next();

@@ -740,13 +740,7 @@ mod tests {
         // fragments scattered over eight sub-frames (as a streak's kernels reach a pixel).
         let windows = windows();
         let mut fragments = Vec::new();
-        let mut seed = 12345u64;
-        let mut random = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut random = crate::math::test_sequence(12345);
         for id in 0..MAX_FRAGMENTS_PER_PIXEL as u32 {
             let window = windows[(id / 2) as usize % 8];
             let start = window[0] + random() * 0.1;

@@ -902,13 +902,7 @@ mod tests {
     /// well inside is fully covered once, well outside is clear.
     #[test]
     fn random_polylines_cover_exactly_their_stroke() {
-        let mut state = 0x5eed_u64;
-        let mut random = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 11) as f64 / (1_u64 << 53) as f64
-        };
+        let mut random = crate::math::test_sequence(0x5eed);
         let size = 120;
         for _ in 0..40 {
             let mut points = vec![DVec2::new(40.0 + 40.0 * random(), 40.0 + 40.0 * random())];
