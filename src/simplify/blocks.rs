@@ -27,7 +27,7 @@ pub const BLOCK_VERTICES: usize = 8192;
 
 /// Blocks, at most. The seams grow as the square root of the block count, and the queue that
 /// finishes them is serial: on the 1.6 M-face armadillo, 16 blocks left it 20,392 collapses
-/// against 40,294 with 64, and ran 5–9 % faster on two threads (docs/math.md, "Blocks").
+/// against 40,294 with 64, and ran 7–10 % faster on two threads (docs/math.md, "Blocks").
 pub const MAX_BLOCKS: usize = 16;
 
 /// What the blocks leave for the single collapser.
