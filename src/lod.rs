@@ -24,6 +24,7 @@ use crate::scene::Object;
 use crate::surfels::Surfel;
 use glam::{DMat3, DVec2, DVec3};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Whether the plan may merge surfels.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -167,8 +168,9 @@ impl LodOutcome {
 /// An object's surfels as one render draws them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjectLod {
-    /// The merged surfels, or `None` for the object's own.
-    pub merged: Option<Vec<Surfel>>,
+    /// The merged surfels (or those resampled from a simplified mesh, shared with the plan's
+    /// cache), or `None` for the object's own.
+    pub merged: Option<Arc<Vec<Surfel>>>,
     /// What was done, for `--explain`.
     pub outcome: LodOutcome,
 }
@@ -275,7 +277,7 @@ pub fn merge(
             along_motion: grid.along_fraction.is_some(),
             longest_cell_px,
         },
-        merged: Some(merged),
+        merged: Some(Arc::new(merged)),
     }
 }
 

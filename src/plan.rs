@@ -226,7 +226,7 @@ impl<'a> Plan<'a> {
                     ObjectMotion::Still
                 };
                 let (mesh_lod, resampled) = mesh_lod(scene, object, moves, method, lod)?;
-                let surfels = resampled.as_deref().unwrap_or(object.surfels());
+                let surfels = resampled.as_deref().map_or(object.surfels(), Vec::as_slice);
                 let kernels = matches!(method, Method::Kernel3d { .. });
                 let mut lod = match lod.blurred_cells(kernels) {
                     _ if draws_triangles(method, object) => ObjectLod::OFF,
@@ -798,7 +798,7 @@ fn mesh_lod(
     moves: bool,
     method: &Method,
     lod: Lod,
-) -> Result<(MeshLod, Option<Vec<Surfel>>)> {
+) -> Result<(MeshLod, Option<Arc<Vec<Surfel>>>)> {
     let Some(mesh) = object.mesh() else {
         return Ok((MeshLod::NoMesh, None));
     };
@@ -873,12 +873,12 @@ fn mesh_lod(
                 surfels
             }
         };
-        Some(resampled.to_vec())
+        Some(resampled)
     };
     let lod = MeshLod::Simplified {
         mesh: shared,
         speed_px,
-        resampled: surfels.as_ref().map(Vec::len),
+        resampled: surfels.as_ref().map(|s| s.len()),
     };
     Ok((lod, surfels))
 }
