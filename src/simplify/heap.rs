@@ -35,9 +35,18 @@ fn bin(cost: f64) -> usize {
     (cost.to_bits() >> BIN_SHIFT) as usize
 }
 
+/// Bins per page: one octave of cost. Pages are made when first used, so a queue whose costs
+/// span a few dozen octaves holds a few dozen pages rather than every bin (65,536 stacks, 1.5 MB
+/// per queue, made and freed by each block and the finishing queue).
+const PAGE_BINS: usize = 256;
+
+/// A page of bins.
+type Page = Box<[Vec<Entry>; PAGE_BINS]>;
+
 /// A bucket queue of [`Entry`], cheapest bin first.
 pub struct Heap {
-    bins: Vec<Vec<Entry>>,
+    /// The bins, [`PAGE_BINS`] to a page.
+    pages: Vec<Option<Page>>,
     /// One bit per bin: set when it may hold entries.
     occupied: Vec<u64>,
     /// No word of `occupied` before this one has a bit set.
@@ -47,7 +56,9 @@ pub struct Heap {
 impl Default for Heap {
     fn default() -> Heap {
         Heap {
-            bins: vec![Vec::new(); BINS],
+            pages: std::iter::repeat_with(|| None)
+                .take(BINS / PAGE_BINS)
+                .collect(),
             occupied: vec![0; BINS / 64],
             first: 0,
         }
@@ -55,10 +66,17 @@ impl Default for Heap {
 }
 
 impl Heap {
+    /// Bin `bin`, its page made if need be.
+    fn bin_mut(&mut self, bin: usize) -> &mut Vec<Entry> {
+        let page = self.pages[bin / PAGE_BINS]
+            .get_or_insert_with(|| Box::new(std::array::from_fn(|_| Vec::new())));
+        &mut page[bin % PAGE_BINS]
+    }
+
     /// Add `entry` at `cost`.
     pub fn push(&mut self, cost: f64, entry: Entry) {
         let bin = bin(cost);
-        self.bins[bin].push(entry);
+        self.bin_mut(bin).push(entry);
         self.occupied[bin / 64] |= 1 << (bin % 64);
         self.first = self.first.min(bin / 64);
     }
@@ -77,12 +95,12 @@ impl Heap {
         }
         for (b, &count) in counts.iter().enumerate() {
             if count > 0 {
-                self.bins[b].reserve_exact(count as usize);
+                self.bin_mut(b).reserve_exact(count as usize);
             }
         }
         for ((_, entry), b) in entries.into_iter().zip(bins) {
             let b = b as usize;
-            self.bins[b].push(entry);
+            self.bin_mut(b).push(entry);
             self.occupied[b / 64] |= 1 << (b % 64);
             self.first = self.first.min(b / 64);
         }
@@ -98,8 +116,9 @@ impl Heap {
     pub fn pop(&mut self, below_bin: usize) -> Option<Entry> {
         let bin = self.cheapest_bin().filter(|&bin| bin < below_bin)?;
         self.first = bin / 64;
-        let entry = self.bins[bin].pop()?;
-        if self.bins[bin].is_empty() {
+        let stack = self.bin_mut(bin);
+        let entry = stack.pop()?;
+        if stack.is_empty() {
             self.occupied[bin / 64] &= !(1 << (bin % 64));
         }
         Some(entry)
@@ -107,8 +126,10 @@ impl Heap {
 
     /// Every queued entry, cheapest bin first and within a bin in the order `pop` takes them.
     pub fn in_order(&self) -> impl Iterator<Item = Entry> + '_ {
-        self.bins[self.first * 64..]
+        self.pages[self.first * 64 / PAGE_BINS..]
             .iter()
+            .flatten()
+            .flat_map(|page| page.iter())
             .flat_map(|bin| bin.iter().rev().copied())
     }
 
