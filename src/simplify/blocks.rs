@@ -17,7 +17,7 @@ use std::ops::Range;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::collapse::{Collapser, Edges, Vertices};
+use super::collapse::{Collapser, Edges, FacesAround, Known, Vertices};
 use super::heap::Heap;
 use super::Stats;
 
@@ -36,19 +36,22 @@ pub(super) struct Blocked {
     pub vertices: Vertices,
     /// The live faces in the order given, with their places among the faces given.
     pub faces: Vec<([u32; 3], u32)>,
-    /// The edges given, if still those of the faces (no block ran).
-    pub edges: Option<Edges>,
+    /// The faces around each vertex and the edges given, if still those of the faces (no block
+    /// ran).
+    pub known: Known,
     /// What the blocks counted.
     pub stats: Stats,
 }
 
-/// Collapse `faces` over `vertices` (with their `first_normals` and `edges`) towards
+/// Collapse `faces` over `vertices` (with the faces `around` each, their `first_normals` and
+/// `edges`) towards
 /// `target_faces` in parallel blocks, leaving for a single collapser the seams' share of the
 /// reduction. A mesh too small for two blocks comes back as it went in.
 #[allow(clippy::too_many_arguments)] // One call; the mesh's parts and the collapse's settings.
 pub(super) fn collapse_in_blocks(
     vertices: Vertices,
     faces: Vec<[u32; 3]>,
+    around: FacesAround,
     edges: Edges,
     first_normals: &[Vec3],
     target_faces: usize,
@@ -62,10 +65,14 @@ pub(super) fn collapse_in_blocks(
         return Blocked {
             vertices,
             faces: faces.into_iter().zip(0..).collect(),
-            edges: Some(edges),
+            known: Known {
+                around: Some(around),
+                edges: Some(edges),
+            },
             stats: Stats::default(),
         };
     }
+    drop(around);
     let size = n.div_ceil(blocks);
     let block_of = |v: u32| v as usize / size;
     let ranges: Vec<Range<usize>> = (0..blocks)
@@ -99,9 +106,12 @@ pub(super) fn collapse_in_blocks(
             let (local, places): (Vec<[u32; 3]>, Vec<u32>) = within.into_iter().unzip();
             let normals = places.iter().map(|&f| first_normals[f as usize]).collect();
             let elsewhere = seam_faces[range.clone()].to_vec();
-            let edges = Some(edges.within(range.clone()));
+            let known = Known {
+                around: None,
+                edges: Some(edges.within(range.clone())),
+            };
             let collapser = Collapser::new(
-                vertices, local, normals, elsewhere, edges, channels, direction,
+                vertices, local, normals, elsewhere, known, channels, direction,
             );
             (collapser, places)
         })
@@ -162,7 +172,7 @@ pub(super) fn collapse_in_blocks(
     Blocked {
         vertices: join(parts),
         faces: live,
-        edges: None,
+        known: Known::default(),
         stats,
     }
 }

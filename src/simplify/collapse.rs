@@ -191,6 +191,15 @@ impl Edges {
     }
 }
 
+/// What is already known of a collapser's faces, so that it need not find it again.
+#[derive(Default)]
+pub(super) struct Known {
+    /// The faces around each vertex.
+    pub around: Option<FacesAround>,
+    /// The edges, or more (edges whose faces are all elsewhere are never candidates).
+    pub edges: Option<Edges>,
+}
+
 /// The faces around each vertex, as one list: `refs[start[v]..start[v] + count[v]]`.
 pub(super) struct FacesAround {
     refs: Vec<u32>,
@@ -209,7 +218,12 @@ impl FacesAround {
 
     /// The faces around `v`.
     pub fn of(&self, v: usize) -> &[u32] {
-        &self.refs[self.start[v]..self.start[v] + self.count[v] as usize]
+        &self.refs[self.range(v)]
+    }
+
+    /// Where the faces around `v` lie in `refs`.
+    fn range(&self, v: usize) -> std::ops::Range<usize> {
+        self.start[v]..self.start[v] + self.count[v] as usize
     }
 
     /// Each edge once, from its lower-numbered end, with how many faces share it (1 boundary,
@@ -268,19 +282,19 @@ pub(super) struct Collapser {
 impl Collapser {
     /// Queue every edge of `faces` over `vertices` (all indices valid, no face with a repeated
     /// corner; `first_normals` one per face, see [`first_normals`]) whose ends have no
-    /// `faces_elsewhere` (empty: none has). `edges`, when given, are those of `faces` or more
-    /// (edges whose faces are all elsewhere are never candidates); otherwise they are found here.
+    /// `faces_elsewhere` (empty: none has). What is not `known` of the faces is found here.
     pub fn new(
         vertices: Vertices,
         faces: Vec<[u32; 3]>,
         first_normals: Vec<Vec3>,
         faces_elsewhere: Vec<u32>,
-        edges: Option<Edges>,
+        known: Known,
         channels: usize,
         direction: Option<DVec3>,
     ) -> Collapser {
         let n = vertices.positions.len();
-        let mut around = FacesAround::new(n, &faces);
+        let Known { around, edges } = known;
+        let mut around = around.unwrap_or_else(|| FacesAround::new(n, &faces));
         // Merged vertices' lists are appended: room for about as many again as there are.
         around.refs.reserve(around.refs.len());
         let Edges(edges) = edges.unwrap_or_else(|| Edges::from_counted(around.edges(&faces)));
@@ -588,7 +602,8 @@ impl Collapser {
     /// Take face `f` out of the list of faces around `v` (the order of the rest may change).
     fn forget_face(&mut self, v: usize, f: u32) {
         let around = &mut self.around;
-        let list = &mut around.refs[around.start[v]..around.start[v] + around.count[v] as usize];
+        let range = around.range(v);
+        let list = &mut around.refs[range];
         if let Some(i) = list.iter().position(|&g| g == f) {
             let last = list.len() - 1;
             list.swap(i, last);
@@ -628,7 +643,7 @@ impl Collapser {
         self.version[b] += 1;
 
         let new_start = self.around.refs.len();
-        for i in self.around.start[a]..self.around.start[a] + self.around.count[a] as usize {
+        for i in self.around.range(a) {
             let f = self.around.refs[i] as usize;
             let face = self.faces[f];
             if face.contains(&(b as u32)) {
@@ -643,7 +658,7 @@ impl Collapser {
                 self.around.refs.push(f as u32);
             }
         }
-        for i in self.around.start[b]..self.around.start[b] + self.around.count[b] as usize {
+        for i in self.around.range(b) {
             let f = self.around.refs[i] as usize;
             if self.face_alive[f] {
                 for w in &mut self.faces[f] {

@@ -2,10 +2,11 @@
 //! 17 bits of their f32 form (the sign, always 0, the exponent and 8 bits of mantissa: bins 1/256
 //! of an octave wide), a bin is a stack, and a bitmap finds the cheapest non-empty bin. Push and
 //! pop take constant time; within a bin, edges come out last in, first out, which is
-//! deterministic and orders costs to within 0.4 %, below what a quadric's error tells apart. The comparison heaps it replaced
-//! spent a third of the time of a simplification (a binary heap on the bunny, and still a
-//! quarter with a 4-ary heap of packed entries on the 1.6 M-face armadillo: the lazy updates
-//! leave the heap three times the edge count, and every pop missed the cache).
+//! deterministic and orders costs to within 0.4 %, below what a quadric's error tells apart. The
+//! comparison heaps it replaced spent a third of the time of a simplification (a binary heap on
+//! the bunny, and still a quarter with a 4-ary heap of packed entries on the 1.6 M-face
+//! armadillo: the lazy updates leave the heap three times the edge count, and every pop missed
+//! the cache).
 
 use rayon::prelude::*;
 
@@ -75,7 +76,11 @@ impl Heap {
 
     /// Add `entry` at `cost`.
     pub fn push(&mut self, cost: f64, entry: Entry) {
-        let bin = bin(cost);
+        self.push_to(bin(cost), entry);
+    }
+
+    /// Add `entry` to bin `bin`.
+    fn push_to(&mut self, bin: usize, entry: Entry) {
         self.bin_mut(bin).push(entry);
         self.occupied[bin / 64] |= 1 << (bin % 64);
         self.first = self.first.min(bin / 64);
@@ -99,10 +104,7 @@ impl Heap {
             }
         }
         for ((_, entry), b) in entries.into_iter().zip(bins) {
-            let b = b as usize;
-            self.bin_mut(b).push(entry);
-            self.occupied[b / 64] |= 1 << (b % 64);
-            self.first = self.first.min(b / 64);
+            self.push_to(b as usize, entry);
         }
     }
 

@@ -185,11 +185,10 @@ pub fn simplify(
     let normals = first_normals(&positions, &faces);
     let (vertices, edges, non_manifold_edges) =
         Vertices::new(positions, &faces, &around, carried_in, motions, limits);
-    drop(around);
     repairs.non_manifold_edges = non_manifold_edges;
     let target = options.target_faces;
     let blocked = blocks::collapse_in_blocks(
-        vertices, faces, edges, &normals, target, channels, direction, progress,
+        vertices, faces, around, edges, &normals, target, channels, direction, progress,
     );
     let (faces, normals) = blocked
         .faces
@@ -201,7 +200,7 @@ pub fn simplify(
         faces,
         normals,
         Vec::new(),
-        blocked.edges,
+        blocked.known,
         channels,
         direction,
     );
