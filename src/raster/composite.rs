@@ -228,13 +228,13 @@ impl<const B: usize> PixelState<B> {
         }
     }
 
-    /// Add to each bin of the open group the coverage its marks in `group_whole_bins` stand for:
-    /// their running sum times the bin's mass.
+    /// Add to each bin of the open group the coverage its marks in `group_whole_bins` stand for
+    /// (their running sum times the bin's mass), and clear the marks.
     fn settle_whole_bins(&mut self, bins: &TimeBins<B>) {
         let [first, last] = self.group_bins;
         let (mut per_mass, mut largest) = (0.0f32, 0.0f32);
         for b in first..last {
-            let mark = self.group_whole_bins[b];
+            let mark = std::mem::take(&mut self.group_whole_bins[b]);
             per_mass += mark;
             largest = largest.max(mark.abs());
             // Where every run has ended the sum is zero but for rounding, which must not leave
@@ -287,7 +287,10 @@ impl<const B: usize> PixelState<B> {
         }
         let [first, last] = self.group_bins;
         if self.group_weight > 0.0 {
-            self.settle_whole_bins(bins);
+            // One bin (an instant) has no run of whole bins to mark.
+            if B > 1 {
+                self.settle_whole_bins(bins);
+            }
             self.spill_overflow(bins);
             let mut visible = 0.0;
             for b in first..last {
@@ -321,7 +324,6 @@ impl<const B: usize> PixelState<B> {
         if first < last {
             self.group_depth[first..last].fill(f32::INFINITY);
             self.group_coverage[first..last].fill(0.0);
-            self.group_whole_bins[first..last].fill(0.0);
         }
         self.group_bins = [B, 0];
     }
