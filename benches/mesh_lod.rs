@@ -125,15 +125,10 @@ fn timed_render(scene: &Scene, method: &Method, lod: Lod, repeats: usize) -> str
     Ok(Timed {
         image,
         first_plan,
-        plan: median(plans),
-        render: median(renders),
+        plan: common::median_and_min(&mut plans).0,
+        render: common::median_and_min(&mut renders).0,
         faces,
     })
-}
-
-fn median(mut times: Vec<f64>) -> f64 {
-    times.sort_by(f64::total_cmp);
-    times[times.len() / 2]
 }
 
 fn flip(test: &Framebuffer, reference: &Framebuffer) -> f64 {

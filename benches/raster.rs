@@ -45,8 +45,7 @@ fn main() -> streak::Result<()> {
         times.push(start.elapsed().as_secs_f64());
         footprints = render.stats.footprints;
     }
-    times.sort_by(f64::total_cmp);
-    let median = times[times.len() / 2];
+    let (median, min) = common::median_and_min(&mut times);
     println!(
         "{} {} (LOD {lod:?}) at {size}×{height}, {} thread(s): median {:.4} s of {} (min {:.4} s), {surfels} surfels → {footprints} footprints, {:.2} M surfels/s",
         scene_path,
@@ -54,7 +53,7 @@ fn main() -> streak::Result<()> {
         rayon::current_num_threads(),
         median,
         times.len(),
-        times[0],
+        min,
         surfels as f64 / median / 1e6
     );
     Ok(())

@@ -53,16 +53,16 @@ fn main() -> streak::Result<()> {
         times.push(start.elapsed().as_secs_f64());
         result = Some(simplified);
     }
-    times.sort_by(f64::total_cmp);
+    let (median, min) = common::median_and_min(&mut times);
     let result = result.expect("at least one run");
     println!(
         "{path} ({} faces, {subdivisions} Loop steps) → {} faces: median {:.4} s of {} on {} thread(s) (min {:.4} s); {:?}",
         mesh.triangles.len(),
         result.mesh.triangles.len(),
-        times[times.len() / 2],
+        median,
         times.len(),
         rayon::current_num_threads(),
-        times[0],
+        min,
         result.stats,
     );
     let reference = Surface::new(&mesh);

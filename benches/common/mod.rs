@@ -23,3 +23,9 @@ pub fn scene_at_width(path: &str, width: u32) -> streak::Result<(Scene, u32)> {
     scene.camera = scene.camera.resized(width, height)?;
     Ok((scene, height))
 }
+
+/// The median and the least of `times`, which are sorted in place.
+pub fn median_and_min(times: &mut [f64]) -> (f64, f64) {
+    times.sort_by(f64::total_cmp);
+    (times[times.len() / 2], times[0])
+}
