@@ -9,9 +9,11 @@
 //!    simplification excluded and included (Zhang's Fig. 7: (T_full − T_lod) / T_lod; here as
 //!    the plain ratio T_full / T_lod).
 //!
-//! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS] [REPEATS]`, by default `320
-//! 7.3,1,0.3 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders.
-//! Reads the meshes from `../shared/data/meshes/`.
+//! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS] [REPEATS] [SCENES]`, by default
+//! `320 7.3,1,0.3 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders.
+//! Given a folder `SCENES`, each scene is also written there (`armadillo-90px-0.3.toml`, say),
+//! for `streak render --explain` or the `raster` bench. Reads the meshes from
+//! `../shared/data/meshes/`.
 
 mod common;
 
@@ -147,6 +149,7 @@ fn main() -> streak::Result<()> {
         .map(|s| s.parse().expect("SPEEDS are px per shutter"))
         .collect();
     let repeats: usize = arg(3, "3").parse().expect("REPEATS is a count");
+    let scenes = arg(4, "");
     println!(
         "{} thread(s), {width} px wide",
         rayon::current_num_threads()
@@ -203,10 +206,13 @@ fn main() -> streak::Result<()> {
             println!("{line}");
             let blur_full = timed_render(&scene, &Method::BLUR, Lod::Off, repeats)?;
             for &sigma in &sigmas {
-                let scene = Scene::parse(
-                    &scene_text(case, speed, width, sigma),
-                    Path::new("bench.toml"),
-                )?;
+                let text = scene_text(case, speed, width, sigma);
+                if !scenes.is_empty() {
+                    let kind = case.name.split(' ').next().unwrap_or("mesh");
+                    let path = Path::new(&scenes).join(format!("{kind}-{speed}px-{sigma}.toml"));
+                    std::fs::write(&path, &text).expect("SCENES is a writable folder");
+                }
+                let scene = Scene::parse(&text, Path::new("bench.toml"))?;
                 let lod = timed_render(&scene, &Method::ANALYTIC, Lod::Auto, repeats)?;
                 let blur = timed_render(&scene, &Method::BLUR, Lod::Auto, repeats)?;
                 println!(
