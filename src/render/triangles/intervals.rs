@@ -57,6 +57,13 @@ pub struct ResolveScratch {
 /// the earliest line that crosses below the current one, so a span with k active pieces costs
 /// O(k²) and yields at most k visible pieces.
 pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut Vec<Interval>) {
+    if let [only] = intervals {
+        // What the sweep below gives for one interval, without its sorting.
+        if only.t[1] > only.t[0] {
+            push_visible(out, out.len(), only, only.t);
+        }
+        return;
+    }
     let ResolveScratch {
         events,
         by_start,

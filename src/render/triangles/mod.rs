@@ -22,7 +22,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::raster::TILE_PX;
 use crate::raster::{TileGrid, TileLists};
 use crate::render::{Method, Receivers};
-use crate::scene::{Camera, LightSource, Object, Scene, TriangleMesh};
+use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMesh};
 use intervals::{resolve, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
 use shadow::{Occluder, Occluders, Receiver, ShadowMap};
@@ -89,6 +89,11 @@ pub struct TriangleStats {
     pub dropped: usize,
     /// Visible pieces shaded (`analytic`).
     pub pieces: usize,
+    /// Runs of visible pieces: a triangle's pieces back to back in time, one per sub-segment it
+    /// crosses, shaded together where no shadow changes along them.
+    pub runs: usize,
+    /// Of those, runs of more than one piece that were shaded as one.
+    pub joined_runs: usize,
     /// Of those, pieces whose receiver swept shadow-map texels and was point-sampled for a
     /// shadow that may start or end (the rest are shaded exactly, or lit for sure).
     pub point_sampled: usize,
@@ -113,8 +118,8 @@ impl TriangleStats {
                 self.intervals, self.peak_per_sample, self.compressed, self.joined, self.dropped
             ));
             out.push_str(&format!(
-                "  shading: {} visible pieces, {} of them point-sampled in shadow-map time (dynamic receivers that may be shadowed)\n",
-                self.pieces, self.point_sampled
+                "  shading: {} visible pieces in {} runs of one triangle ({} runs of several sub-segments shaded as one), {} pieces point-sampled in shadow-map time (dynamic receivers that may be shadowed)\n",
+                self.pieces, self.runs, self.joined_runs, self.point_sampled
             ));
         }
         out
@@ -130,6 +135,8 @@ impl TriangleStats {
         self.joined += other.joined;
         self.dropped += other.dropped;
         self.pieces += other.pieces;
+        self.runs += other.runs;
+        self.joined_runs += other.joined_runs;
         self.point_sampled += other.point_sampled;
         self.spatial_samples = self.spatial_samples.max(other.spatial_samples);
     }
@@ -167,6 +174,8 @@ struct Placed {
     time: [f64; 2],
     /// The viewing camera's focal length, px.
     focal_px: f64,
+    /// Whether no corner moves: the triangle covers a sample all the time or never, at one depth.
+    still: bool,
 }
 
 /// One triangle over one sub-segment.
@@ -335,6 +344,7 @@ impl<'a> Prepared<'a> {
             window,
             time: segment.time,
             focal_px: self.camera.focal_px,
+            still: triangle.delta == [DVec3::ZERO; 3],
         }
     }
 
@@ -417,27 +427,29 @@ impl<'a> Prepared<'a> {
         let band = width as usize * TILE_PX as usize;
         let mut image = Framebuffer::filled(width, height, self.scene.background);
         let mut hidden_beyond = vec![f32::INFINITY; width as usize * height as usize];
+        let pool = ScratchPool::default();
         let stats: Vec<TriangleStats> = (image.pixels.par_chunks_mut(band))
             .zip(hidden_beyond.par_chunks_mut(band))
             .with_max_len(1)
             .enumerate()
             .map(|(ty, (pixels, hidden))| {
-                let mut scratch = Scratch::default();
-                let mut stats = TriangleStats::default();
-                for tile in grid.row(ty) {
-                    let bounds = grid.pixels(tile);
-                    self.render_tile(lists.list(tile), bounds, &offsets, &mut scratch, &mut stats);
-                    let [x0, y0, x1, _] = bounds;
-                    let w = (x1 - x0) as usize;
-                    for (i, (colour, hide)) in scratch.pixels.iter().enumerate() {
-                        let at = (i / w + (y0 - ty as u32 * TILE_PX) as usize) * width as usize
-                            + x0 as usize
-                            + i % w;
-                        pixels[at] = *colour;
-                        hidden[at] = *hide;
+                pool.with(|scratch| {
+                    let mut stats = TriangleStats::default();
+                    for tile in grid.row(ty) {
+                        let bounds = grid.pixels(tile);
+                        self.render_tile(lists.list(tile), bounds, &offsets, scratch, &mut stats);
+                        let [x0, y0, x1, _] = bounds;
+                        let w = (x1 - x0) as usize;
+                        for (i, (colour, hide)) in scratch.pixels.iter().enumerate() {
+                            let at = (i / w + (y0 - ty as u32 * TILE_PX) as usize) * width as usize
+                                + x0 as usize
+                                + i % w;
+                            pixels[at] = *colour;
+                            hidden[at] = *hide;
+                        }
                     }
-                }
-                stats
+                    stats
+                })
             })
             .collect();
         let mut total = TriangleStats {
@@ -550,6 +562,7 @@ impl<'a> Prepared<'a> {
                     resolving,
                     visible,
                     cuts,
+                    ends,
                     ..
                 } = scratch;
                 visible.clear();
@@ -558,17 +571,24 @@ impl<'a> Prepared<'a> {
                 let mut colour = [0.0f64; 3];
                 let mut covered = 0.0;
                 let mut farthest = f64::NEG_INFINITY;
-                for piece in visible.iter() {
-                    let mass = shutter.moments(piece.t[0], piece.t[1]).mass;
+                let same_triangle = |a: &Interval, b: &Interval| {
+                    let (a, b) = (&self.items[a.item as usize], &self.items[b.item as usize]);
+                    a.object == b.object && a.triangle == b.triangle
+                };
+                for run in visible.chunk_by(|a, b| a.t[1] == b.t[0] && same_triangle(a, b)) {
+                    let span = [run[0].t[0], run[run.len() - 1].t[1]];
+                    let mass = shutter.moments(span[0], span[1]).mass;
                     if !(mass > 0.0) {
                         continue;
                     }
-                    let mean = self.piece_colour(piece, d, cuts, stats);
+                    let mean = self.run_colour(run, d, cuts, ends, stats);
                     for c in 0..3 {
                         colour[c] += mass * mean[c];
                     }
                     covered += mass;
-                    farthest = farthest.max(piece.depth[0].max(piece.depth[1]));
+                    for piece in run {
+                        farthest = farthest.max(piece.depth[0].max(piece.depth[1]));
+                    }
                 }
                 let uncovered = (1.0 - covered).max(0.0);
                 for c in 0..3 {
@@ -582,6 +602,148 @@ impl<'a> Prepared<'a> {
                 (colour, beyond)
             }
         }
+    }
+
+    /// Mean colour of a run of visible pieces of one triangle, back to back in time (one per
+    /// sub-segment it crosses), weighted by the shutter: as one where no shadow can change along
+    /// it ([`Prepared::lit_run_colour`]), else piece by piece.
+    fn run_colour(
+        &self,
+        run: &[Interval],
+        d: DVec3,
+        cuts: &mut Vec<f64>,
+        ends: &mut Vec<SurfacePoint>,
+        stats: &mut TriangleStats,
+    ) -> [f64; 3] {
+        stats.runs += 1;
+        if let [piece] = run {
+            stats.pieces += 1;
+            return self.piece_colour(piece, d, cuts, stats);
+        }
+        if let Some(colour) = self.lit_run_colour(run, d, cuts, ends) {
+            stats.pieces += run.len();
+            stats.joined_runs += 1;
+            return colour;
+        }
+        let (mut sum, mut mass) = ([0.0; 3], 0.0);
+        for piece in run {
+            let m = self.scene.shutter.moments(piece.t[0], piece.t[1]).mass;
+            if !(m > 0.0) {
+                continue;
+            }
+            stats.pieces += 1;
+            let mean = self.piece_colour(piece, d, cuts, stats);
+            for c in 0..3 {
+                sum[c] += m * mean[c];
+            }
+            mass += m;
+        }
+        sum.map(|c| if mass > 0.0 { c / mass } else { 0.0 })
+    }
+
+    /// The mean colour of a run of several pieces when no shadow map can change its light: it
+    /// faces away from each shadowed light all along, or each of its pieces is lit for sure
+    /// ([`ShadowMap::surely_lit`], as [`Prepared::piece_colour`] checks it). The surface (normal, point, colour) is found exactly at every
+    /// piece's ends and interpolated linearly within each piece, as [`Prepared::piece_colour`]
+    /// does; the run is cut where it turns towards or away from a light (eq. 2.5, per piece)
+    /// and integrated at three Gauss–Legendre times per cut piece, not per sub-segment: the
+    /// light changes smoothly across a sub-segment's end, where the pose is continuous. `None`
+    /// when a shadow may fall on the run.
+    fn lit_run_colour(
+        &self,
+        run: &[Interval],
+        d: DVec3,
+        cuts: &mut Vec<f64>,
+        ends: &mut Vec<SurfacePoint>,
+    ) -> Option<[f64; 3]> {
+        ends.clear();
+        for (i, piece) in run.iter().enumerate() {
+            let item = &self.items[piece.item as usize];
+            let triangle = self.corners(item);
+            let [t0, t1] = self.segment(item).time;
+            let fraction = |t: f64| if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+            ends.push(self.surface_point(item, &triangle, d, fraction(piece.t[0])));
+            if i + 1 == run.len() {
+                ends.push(self.surface_point(item, &triangle, d, fraction(piece.t[1])));
+            }
+        }
+        let ends = &ends[..];
+        let time = |i: usize| run.get(i).map_or(run[run.len() - 1].t[1], |p| p.t[0]);
+        let surface_at = |t: f64| {
+            let i = run.partition_point(|p| p.t[1] < t).min(run.len() - 1);
+            let span = run[i].t;
+            let u = if span[1] > span[0] {
+                ((t - span[0]) / (span[1] - span[0])).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            ends[i].lerp(&ends[i + 1], u)
+        };
+        let span = [run[0].t[0], run[run.len() - 1].t[1]];
+        cuts.clear();
+        cuts.extend(span);
+        if self.scene.lighting.is_lit() {
+            let item = &self.items[run[0].item as usize];
+            let own = (item.object, item.triangle);
+            let mut maps = self.shadows.iter();
+            for source in &self.sources {
+                let mut away = true;
+                for i in 0..run.len() {
+                    let facing = |t: f64| {
+                        let end = surface_at(t);
+                        end.normal.dot(source.towards(end.point))
+                    };
+                    away &= cut_where_turning(facing, [time(i), time(i + 1)], cuts);
+                }
+                if !source.shadows() {
+                    continue;
+                }
+                let map = maps.next()?;
+                // Each piece as `piece_colour` checks it: its own path, time and first normal.
+                let lit = |i: usize| {
+                    map.surely_lit(&Receiver {
+                        path: [ends[i].point, ends[i + 1].point],
+                        normal: ends[i].normal,
+                        span: [time(i), time(i + 1)],
+                        own,
+                    })
+                };
+                if !(away || (0..run.len()).all(lit)) {
+                    return None;
+                }
+            }
+        }
+        let shutter = &self.scene.shutter;
+        if shutter.shape == ShutterShape::Tent {
+            // The tent's kink, where a Gauss–Legendre rule would lose its order.
+            let middle = shutter.middle();
+            if middle > span[0] && middle < span[1] {
+                cuts.push(middle);
+            }
+        }
+        cuts.sort_unstable_by(f64::total_cmp);
+        cuts.dedup();
+        let mut sum = [0.0; 3];
+        let mut weight = 0.0;
+        let lit = [1.0; MAX_SHADOWED_LIGHTS];
+        for pair in cuts.windows(2) {
+            let [a, b] = [pair[0], pair[1]];
+            if !(b > a) {
+                continue;
+            }
+            let (centre, half) = (0.5 * (a + b), 0.5 * (b - a));
+            for (node, w) in GAUSS_LEGENDRE_3 {
+                let t = centre + half * node;
+                let w = w * half * shutter.weight(t).max(1e-300);
+                let end = surface_at(t);
+                let irradiance = self.irradiance(end.normal, end.point, &lit);
+                for (total, albedo) in sum.iter_mut().zip(end.albedo) {
+                    *total += w * albedo * irradiance;
+                }
+                weight += w;
+            }
+        }
+        (weight > 0.0).then(|| sum.map(|c| c / weight))
     }
 
     /// Mean colour of a visible piece, weighted by the shutter. The piece is cut where the
@@ -598,7 +760,6 @@ impl<'a> Prepared<'a> {
         cuts: &mut Vec<f64>,
         stats: &mut TriangleStats,
     ) -> [f64; 3] {
-        stats.pieces += 1;
         let item = &self.items[piece.item as usize];
         let triangle = self.corners(item);
         let segment = self.segment(item);
@@ -765,8 +926,40 @@ impl<'a> Prepared<'a> {
     /// The shading normal (world, facing the eye: both sides of a triangle are drawn) and the
     /// world point the ray `d` sees on `item` at segment fraction `s`.
     fn surface(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> (DVec3, DVec3) {
-        let (_, mesh, _) = &self.objects[item.object as usize];
+        let (normal, point, _) =
+            self.surface_with(item, triangle, d, s, triangle.barycentric(d, s));
+        (normal, point)
+    }
+
+    /// [`Prepared::surface`] and [`Prepared::albedo`] at once, with the camera depth.
+    fn surface_point(
+        &self,
+        item: &Item,
+        triangle: &MovingTriangle,
+        d: DVec3,
+        s: f64,
+    ) -> SurfacePoint {
         let weights = triangle.barycentric(d, s);
+        let (normal, point, depth) = self.surface_with(item, triangle, d, s, weights);
+        SurfacePoint {
+            normal,
+            point,
+            depth,
+            albedo: self.albedo_with(item, weights),
+        }
+    }
+
+    /// The shading normal, world point and camera depth where the ray `d` meets `item` at
+    /// segment fraction `s`, at barycentric `weights`.
+    fn surface_with(
+        &self,
+        item: &Item,
+        triangle: &MovingTriangle,
+        d: DVec3,
+        s: f64,
+        weights: [f64; 3],
+    ) -> (DVec3, DVec3, f64) {
+        let (_, mesh, _) = &self.objects[item.object as usize];
         let normals = mesh.normals[item.triangle as usize];
         let local: DVec3 = (0..3).map(|k| normals[k] * weights[k]).sum();
         let [r0, r1] = self.segment(item).rotation;
@@ -775,7 +968,7 @@ impl<'a> Prepared<'a> {
             world = -world;
         }
         let depth = triangle.depth(d, s).unwrap_or(0.0);
-        (world, self.view_to_world.transform_point3(d * depth))
+        (world, self.view_to_world.transform_point3(d * depth), depth)
     }
 
     /// The colour the ray `d` sees on `item` at segment fraction `s` (time `t`), in the shadows
@@ -799,8 +992,12 @@ impl<'a> Prepared<'a> {
     /// The corner colours interpolated perspective-correctly where the ray `d` meets `item` at
     /// segment fraction `s`.
     fn albedo(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
+        self.albedo_with(item, triangle.barycentric(d, s))
+    }
+
+    /// The corner colours of `item` at barycentric `weights`.
+    fn albedo_with(&self, item: &Item, weights: [f64; 3]) -> [f64; 3] {
         let (_, mesh, _) = &self.objects[item.object as usize];
-        let weights = triangle.barycentric(d, s);
         let corners = mesh.triangles[item.triangle as usize];
         [0, 1, 2].map(|c| {
             (0..3)
@@ -838,14 +1035,15 @@ impl<'a> Prepared<'a> {
         let grid = TileGrid::new(camera.width, camera.height);
         let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
+        let pool = ScratchPool::default();
         let tiles = (0..grid.count())
             .into_par_iter()
             .with_max_len(1)
-            .map_init(
-                || (Scratch::default(), TriangleStats::default()),
-                |(scratch, stats), tile| {
+            .map(|tile| {
+                pool.with(|scratch| {
+                    let mut stats = TriangleStats::default();
                     let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
-                    self.fill_tile(lists.list(tile), bounds, &offsets, scratch, stats);
+                    self.fill_tile(lists.list(tile), bounds, &offsets, scratch, &mut stats);
                     let texels = ((x1 - x0) * (y1 - y0)) as usize;
                     let mut starts = Vec::with_capacity(texels + 1);
                     let mut found = Vec::new();
@@ -881,13 +1079,60 @@ impl<'a> Prepared<'a> {
                         })
                         .collect();
                     (starts, occluders)
-                },
-            )
+                })
+            })
             .collect();
         Occluders {
             camera: self.camera.clone(),
             tiles,
         }
+    }
+}
+
+/// What a sample's ray sees on a surface at one time.
+#[derive(Clone, Copy, Debug)]
+struct SurfacePoint {
+    /// Shading normal (world, unit).
+    normal: DVec3,
+    /// World point.
+    point: DVec3,
+    /// Camera depth along the ray.
+    depth: f64,
+    /// Colour.
+    albedo: [f64; 3],
+}
+
+impl SurfacePoint {
+    /// Linear interpolation towards `other` by `u` (the normal normalized again).
+    fn lerp(&self, other: &SurfacePoint, u: f64) -> SurfacePoint {
+        SurfacePoint {
+            normal: self.normal.lerp(other.normal, u).normalize_or_zero(),
+            point: self.point.lerp(other.point, u),
+            depth: self.depth + (other.depth - self.depth) * u,
+            albedo: [0, 1, 2].map(|c| self.albedo[c] + (other.albedo[c] - self.albedo[c]) * u),
+        }
+    }
+}
+
+/// The working memory of one pass's tasks, handed from task to task so that sample lists keep
+/// their capacity (a task is a tile or a row of tiles; no more are in use than threads).
+#[derive(Default)]
+struct ScratchPool(std::sync::Mutex<Vec<Scratch>>);
+
+impl ScratchPool {
+    /// Run `work` with a scratch from the pool (or a new one), then return it.
+    fn with<R>(&self, work: impl FnOnce(&mut Scratch) -> R) -> R {
+        let mut scratch = self
+            .0
+            .lock()
+            .ok()
+            .and_then(|mut free| free.pop())
+            .unwrap_or_default();
+        let result = work(&mut scratch);
+        if let Ok(mut free) = self.0.lock() {
+            free.push(scratch);
+        }
+        result
     }
 }
 
@@ -904,6 +1149,8 @@ struct Scratch {
     knots: Vec<[f64; 2]>,
     /// The times a visible piece is cut at for shading.
     cuts: Vec<f64>,
+    /// The surface at the ends of a run's pieces.
+    ends: Vec<SurfacePoint>,
     /// The finished pixels: colour and hidden-beyond depth.
     pixels: Vec<([f32; 3], f32)>,
 }
@@ -951,10 +1198,27 @@ impl Scratch {
             edges,
             window,
             time: [t0, t1],
+            still,
             ..
         } = placed;
         let (window, t0, t1) = (*window, *t0, *t1);
         if !(window[1] > window[0]) {
+            return;
+        }
+        if *still {
+            // What the edge quadratics and depth pieces below give when nothing moves.
+            if let Some(z) = edges
+                .inside_at_start(d)
+                .then(|| triangle.depth(d, 0.0))
+                .flatten()
+            {
+                let interval = Interval {
+                    t: [t0 + (t1 - t0) * window[0], t0 + (t1 - t0) * window[1]],
+                    depth: [z, z],
+                    item,
+                };
+                self.push(sample, interval, stats);
+            }
             return;
         }
         self.covered.clear();

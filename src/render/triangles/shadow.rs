@@ -148,6 +148,49 @@ pub struct Occluder {
     pub id: (u32, u32),
 }
 
+/// A texel's nearest occluder depth over all time, its triangle, and the nearest depth of every
+/// other triangle (+∞ where there is none): the nearest that can shadow any receiver, its own
+/// triangle left out, in one look.
+#[derive(Clone, Copy, Debug)]
+struct Nearest {
+    depth: f32,
+    id: (u32, u32),
+    others: f32,
+}
+
+impl Nearest {
+    fn of(occluders: &[Occluder]) -> Nearest {
+        let mut nearest = Nearest {
+            depth: f32::INFINITY,
+            id: (u32::MAX, u32::MAX),
+            others: f32::INFINITY,
+        };
+        for o in occluders {
+            let depth = o.piece.depth[0].min(o.piece.depth[1]) as f32;
+            if o.id == nearest.id {
+                nearest.depth = nearest.depth.min(depth);
+            } else if depth < nearest.depth {
+                // The old nearest is another triangle's, and nearer than any other but this.
+                nearest.others = nearest.depth;
+                nearest.depth = depth;
+                nearest.id = o.id;
+            } else {
+                nearest.others = nearest.others.min(depth);
+            }
+        }
+        nearest
+    }
+
+    /// The nearest depth of any triangle but `own`.
+    fn except(&self, own: (u32, u32)) -> f32 {
+        if own == self.id {
+            self.others
+        } else {
+            self.depth
+        }
+    }
+}
+
 /// The occluders of every texel: per tile of the light's view, the texels' lists one after the
 /// other (`starts` has one more entry than the tile has texels).
 pub struct Occluders {
@@ -161,10 +204,9 @@ pub struct Occluders {
 pub struct ShadowMap {
     occluders: Occluders,
     tiles_x: u32,
-    /// The nearest occluder depth of each texel over all time (+∞ where none), row by row: a
-    /// receiver whose depth limit lies nearer than every occluder its path reads is lit
-    /// throughout.
-    nearest: Vec<f32>,
+    /// The nearest occluders of each texel over all time, row by row: a receiver whose depth
+    /// limit lies nearer than every other triangle's occluder its path reads is lit throughout.
+    nearest: Vec<Nearest>,
 }
 
 impl ShadowMap {
@@ -181,19 +223,16 @@ impl ShadowMap {
         map.nearest = (0..side * side)
             .map(|i| {
                 let (x, y) = (i64::from(i % side), i64::from(i / side));
-                map.texel(x, y)
-                    .iter()
-                    .map(|o| o.piece.depth[0].min(o.piece.depth[1]) as f32)
-                    .fold(f32::INFINITY, f32::min)
+                Nearest::of(map.texel(x, y))
             })
             .collect();
         map
     }
 
     /// Whether `receiver` is lit throughout its span: in every texel its bilinear lookups can
-    /// read along its path, either every occluder of the exposure lies beyond its depth limit
-    /// (one look at the texel's nearest depth), or every other triangle's occluder during its span
-    /// does. The path's texels are walked row by row (a straight path in the world projects to a
+    /// read along its path, either every other triangle's occluder of the exposure lies beyond
+    /// its depth limit (one look at the texel's [`Nearest`]), or every other triangle's occluder
+    /// during its span does. The path's texels are walked row by row (a straight path in the world projects to a
     /// straight one in the map); the depth limit is the larger of the path's ends'. A path
     /// sweeping more than [`MAX_SURELY_LIT_TEXELS`] is not checked.
     #[must_use]
@@ -213,7 +252,7 @@ impl ShadowMap {
         let side = i64::from(self.occluders.camera.width);
         let lit = |x: i64, y: i64| {
             let index = (y * side + x) as usize;
-            f64::from(self.nearest[index]) >= limit
+            f64::from(self.nearest[index].except(receiver.own)) >= limit
                 || self
                     .others_during(x, y, receiver)
                     .all(|(o, [a0, a1])| o.piece.depth_at(a0).min(o.piece.depth_at(a1)) >= limit)
@@ -255,8 +294,12 @@ impl ShadowMap {
         receiver: &'m Receiver,
     ) -> impl Iterator<Item = (&'m Occluder, [f64; 2])> + 'm {
         let [t0, t1] = receiver.span;
-        self.texel(x, y)
+        // A texel's pieces are in time order and do not overlap (one resolve's output).
+        let list = self.texel(x, y);
+        let first = list.partition_point(|o| o.piece.t[1] < t0);
+        list[first..]
             .iter()
+            .take_while(move |o| o.piece.t[0] <= t1)
             .filter(move |o| o.id != receiver.own)
             .map(move |o| (o, [o.piece.t[0].max(t0), o.piece.t[1].min(t1)]))
             .filter(|(_, [a0, a1])| a0 <= a1)
