@@ -169,6 +169,14 @@ pub fn smallest_eigenvector(mut a: [[f64; 3]; 3]) -> DVec3 {
     column.try_normalize().unwrap_or(DVec3::Z)
 }
 
+/// ⌊x⌋ as an integer, saturating at the ends of i64 (NaN gives 0): a cast and a compare, where
+/// `f64::floor` is a library call on the baseline x86-64 target.
+#[must_use]
+pub fn floor_to_i64(x: f64) -> i64 {
+    let truncated = x as i64;
+    truncated.saturating_sub(i64::from((truncated as f64) > x))
+}
+
 /// Real roots of a·x² + b·x + c = 0 in ascending order, as (roots, how many): none, one or two,
 /// a double root once.
 ///
@@ -269,6 +277,18 @@ pub(crate) fn test_sequence(seed: u64) -> impl FnMut() -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_to_i64_matches_floor_and_saturates() {
+        for x in [
+            -2.5, -2.0, -0.5, -0.0, 0.0, 0.3, 1.0, 7.999_999, 1e10, -1e10,
+        ] {
+            assert_eq!(floor_to_i64(x), x.floor() as i64, "{x}");
+        }
+        assert_eq!(floor_to_i64(f64::INFINITY), i64::MAX);
+        assert_eq!(floor_to_i64(f64::NEG_INFINITY), i64::MIN);
+        assert_eq!(floor_to_i64(f64::NAN), 0);
+    }
 
     #[test]
     fn principal_axes_rebuild_the_covariance() {

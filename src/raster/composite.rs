@@ -46,7 +46,7 @@ impl<const B: usize> TimeBins<B> {
         let step = shutter.duration() / B as f64;
         let mass: [f64; B] = std::array::from_fn(|b| {
             let t0 = shutter.open + step * b as f64;
-            shutter.moments(t0, t0 + step).mass
+            shutter.mass(t0, t0 + step)
         });
         TimeBins {
             start: 0.0,

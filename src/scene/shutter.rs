@@ -181,6 +181,17 @@ impl Shutter {
         }
     }
 
+    /// The share of the shutter's weight over [t0, t1] (clipped to the open interval): the mass
+    /// of [`Shutter::moments`], without the other moments for a box.
+    #[must_use]
+    pub fn mass(&self, t0: f64, t1: f64) -> f64 {
+        if self.shape == ShutterShape::Box {
+            (t1.min(self.close) - t0.max(self.open)).max(0.0) / self.duration()
+        } else {
+            self.moments(t0, t1).mass
+        }
+    }
+
     /// `count` equal strata of the exposure with their moments: the reference's sample times
     /// (stratum midpoints) and weights (stratum masses).
     pub fn strata(&self, count: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
@@ -188,7 +199,7 @@ impl Shutter {
         (0..count).map(move |i| {
             let t0 = self.open + step * i as f64;
             let t1 = t0 + step;
-            (0.5 * (t0 + t1), self.moments(t0, t1).mass)
+            (0.5 * (t0 + t1), self.mass(t0, t1))
         })
     }
 }
@@ -233,6 +244,13 @@ mod tests {
             let s = shutter(shape);
             let sum: f64 = s.strata(7).map(|(_, mass)| mass).sum();
             assert!((sum - 1.0).abs() < 1e-9, "{shape:?}: {sum}");
+            for (t0, t1) in [(0.1, 0.35), (-0.5, 0.2), (0.9, 1.4), (0.6, 0.6), (0.7, 0.3)] {
+                assert_eq!(
+                    s.mass(t0, t1),
+                    s.moments(t0, t1).mass,
+                    "{shape:?} {t0} {t1}"
+                );
+            }
         }
     }
 

@@ -150,7 +150,7 @@ pub(super) fn render(
     let mut windows = Vec::with_capacity(times.len() - 1);
     let mut mass = 0.0;
     for pair in times.windows(2) {
-        let next = mass + scene.shutter.moments(pair[0], pair[1]).mass;
+        let next = mass + scene.shutter.mass(pair[0], pair[1]);
         windows.push([mass, next]);
         mass = next;
     }
@@ -376,7 +376,7 @@ fn kernels_over(
                 // seen exactly edge-on, with no area at all.
                 (first_half, _) => {
                     let turn = t0 + (t1 - t0) * c0 / (c0 - c1);
-                    let turn_mass = window[0] + scene.shutter.moments(t0, turn).mass;
+                    let turn_mass = window[0] + scene.shutter.mass(t0, turn);
                     let (span, window) = if first_half {
                         ([t0, turn], [window[0], turn_mass])
                     } else {

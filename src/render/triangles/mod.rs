@@ -577,7 +577,7 @@ impl<'a> Prepared<'a> {
                 };
                 for run in visible.chunk_by(|a, b| a.t[1] == b.t[0] && same_triangle(a, b)) {
                     let span = [run[0].t[0], run[run.len() - 1].t[1]];
-                    let mass = shutter.moments(span[0], span[1]).mass;
+                    let mass = shutter.mass(span[0], span[1]);
                     if !(mass > 0.0) {
                         continue;
                     }
@@ -627,7 +627,7 @@ impl<'a> Prepared<'a> {
         }
         let (mut sum, mut mass) = ([0.0; 3], 0.0);
         for piece in run {
-            let m = self.scene.shutter.moments(piece.t[0], piece.t[1]).mass;
+            let m = self.scene.shutter.mass(piece.t[0], piece.t[1]);
             if !(m > 0.0) {
                 continue;
             }
@@ -867,7 +867,7 @@ impl<'a> Prepared<'a> {
             let albedo = self.albedo(item, &triangle, d, 0.0);
             let (mut sum, mut mass) = (0.0, 0.0);
             for pair in cuts.windows(2) {
-                let m = self.scene.shutter.moments(pair[0], pair[1]).mass;
+                let m = self.scene.shutter.mass(pair[0], pair[1]);
                 sum += m * self.irradiance(normal, p, &visibility_at(0.5 * (pair[0] + pair[1])));
                 mass += m;
             }

@@ -16,6 +16,7 @@
 use glam::{DVec2, DVec3};
 
 use super::intervals::Interval;
+use crate::math::floor_to_i64;
 use crate::plan::Plan;
 use crate::scene::{Camera, LightSource, Scene};
 
@@ -242,13 +243,27 @@ impl ShadowMap {
             normal,
             ..
         } = *receiver;
-        let (Some((a, d0)), Some((b, d1))) = (self.locate(p0), self.locate(p1)) else {
+        // A still receiver's path is one point: located and biased once.
+        let still = p0 == p1;
+        let Some((a, d0)) = self.locate(p0) else {
+            return false;
+        };
+        let Some((b, d1)) = (if still {
+            Some((a, d0))
+        } else {
+            self.locate(p1)
+        }) else {
             return false;
         };
         if !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
             return false;
         }
-        let limit = (d0 - self.bias(d0, p0, normal)).max(d1 - self.bias(d1, p1, normal));
+        let limit = d0 - self.bias(d0, p0, normal);
+        let limit = if still {
+            limit
+        } else {
+            limit.max(d1 - self.bias(d1, p1, normal))
+        };
         let side = i64::from(self.occluders.camera.width);
         let lit = |x: i64, y: i64| {
             let index = (y * side + x) as usize;
@@ -268,12 +283,17 @@ impl ShadowMap {
             };
             lo.x + (hi.x - lo.x) * u
         };
-        let rows = lo.y.floor() as i64..=hi.y.floor() as i64 + 1;
-        rows.filter(|row| (0..side).contains(row)).all(|row| {
+        // Texel indices, clamped to just outside the map first so that one more stays in range.
+        let index = |v: f64| floor_to_i64(v.clamp(-2.0, side as f64 + 1.0));
+        for row in index(lo.y).max(0)..(index(hi.y) + 2).min(side) {
             let (xa, xb) = (x_at(row as f64 - 1.0, 0.0), x_at(row as f64 + 1.0, 1.0));
-            let (x0, x1) = (xa.min(xb).floor() as i64, xa.max(xb).floor() as i64 + 1);
-            (x0.max(0)..=x1.min(side - 1)).all(|x| lit(x, row))
-        })
+            for x in index(xa.min(xb)).max(0)..(index(xa.max(xb)) + 2).min(side) {
+                if !lit(x, row) {
+                    return false;
+                }
+            }
+        }
+        true
     }
 
     /// Where world point `p` falls: continuous texel coordinates (texel centres at integers)
@@ -333,9 +353,8 @@ impl ShadowMap {
 
     /// The four texels of a bilinear lookup at texel coordinates `at`, with their weights.
     fn footprint(at: DVec2) -> [((i64, i64), f64); 4] {
-        let base = at.floor();
-        let f = at - base;
-        let (x, y) = (base.x as i64, base.y as i64);
+        let (x, y) = (floor_to_i64(at.x), floor_to_i64(at.y));
+        let f = at - DVec2::new(x as f64, y as f64);
         [
             ((x, y), (1.0 - f.x) * (1.0 - f.y)),
             ((x + 1, y), f.x * (1.0 - f.y)),
