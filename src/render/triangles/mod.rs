@@ -14,7 +14,7 @@ pub(crate) mod intervals;
 pub(crate) mod shadow;
 pub(crate) mod tct;
 
-use glam::{DAffine3, DMat3, DVec3};
+use glam::{DAffine3, DMat3, DVec2, DVec3};
 use rayon::prelude::*;
 
 use crate::framebuffer::Framebuffer;
@@ -378,17 +378,14 @@ impl<'a> Prepared<'a> {
                     }
                     // A corner at the near plane itself (a window's end) may round to behind it:
                     // it projects far off screen anyway, so the whole image bounds it.
-                    let (mut lo, mut hi) = (glam::DVec2::INFINITY, glam::DVec2::NEG_INFINITY);
-                    for s in window {
-                        for p in triangle.at(s) {
-                            let (screen_lo, screen_hi) = match camera.project(p) {
-                                Some((screen, _)) => (screen, screen),
-                                None => (glam::DVec2::NEG_INFINITY, glam::DVec2::INFINITY),
-                            };
-                            lo = lo.min(screen_lo);
-                            hi = hi.max(screen_hi);
-                        }
-                    }
+                    let (lo, hi) = match screen_corners(camera, &triangle, window) {
+                        Some(corners) => corners
+                            .iter()
+                            .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), &p| {
+                                (lo.min(p), hi.max(p))
+                            }),
+                        None => (DVec2::NEG_INFINITY, DVec2::INFINITY),
+                    };
                     let clip = |v: f64, max: u32| v.clamp(0.0, f64::from(max)) as u32;
                     let bounds = [
                         clip((lo.x - 1.0).floor(), width),
@@ -483,12 +480,35 @@ impl<'a> Prepared<'a> {
         let per_pixel = offsets.len();
         let samples = w * (y1 - y0) as usize * per_pixel;
         scratch.reset(samples);
+        // The samples' offsets within their pixel span these.
+        let [ox0, oy0] = offsets
+            .iter()
+            .fold([f64::INFINITY; 2], |m, o| [m[0].min(o[0]), m[1].min(o[1])]);
+        let [ox1, oy1] = offsets.iter().fold([f64::NEG_INFINITY; 2], |m, o| {
+            [m[0].max(o[0]), m[1].max(o[1])]
+        });
         for &index in list {
             let item = &self.items[index as usize];
             let placed = self.triangle(item);
             let [ix0, iy0, ix1, iy1] = item.bounds;
+            // A moving triangle covers samples within the hull of its corners' screen paths
+            // only; the rest of its bounds are skipped a row at a time.
+            let hull = (!placed.still)
+                .then(|| screen_corners(camera, &placed.triangle, placed.window))
+                .flatten()
+                .map(|corners| ScreenHull::new(&corners));
             for y in iy0.max(y0)..iy1.min(y1) {
-                for x in ix0.max(x0)..ix1.min(x1) {
+                let (mut from, mut to) = (ix0.max(x0), ix1.min(x1));
+                if let Some(hull) = &hull {
+                    let Some([lo, hi]) = hull.x_range(f64::from(y) + oy0, f64::from(y) + oy1)
+                    else {
+                        continue;
+                    };
+                    let pixel = |x: f64| x.clamp(0.0, f64::from(u32::MAX)) as u32;
+                    from = from.max(pixel((lo - ox1 - HULL_MARGIN_PX).ceil()));
+                    to = to.min(pixel((hi - ox0 + HULL_MARGIN_PX).floor() + 1.0));
+                }
+                for x in from..to {
                     let pixel = (y - y0) as usize * w + (x - x0) as usize;
                     for (k, [ox, oy]) in offsets.iter().enumerate() {
                         let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
@@ -1089,6 +1109,91 @@ impl<'a> Prepared<'a> {
     }
 }
 
+/// Slack around a moving triangle's screen hull, px: samples this near it are still tested
+/// exactly, so that rounding in the projection never drops one the edge functions cover.
+const HULL_MARGIN_PX: f64 = 1e-3;
+
+/// Where the corners of `triangle` project at the ends of `window`: each corner moves on a
+/// straight line in camera space, which projects to a straight line on screen, so the triangle
+/// at every time in the window lies in their convex hull. `None` when one does not project (a
+/// corner at the near plane rounded to behind it).
+fn screen_corners(
+    camera: &Camera,
+    triangle: &MovingTriangle,
+    window: [f64; 2],
+) -> Option<[DVec2; 6]> {
+    let [a, b] = window.map(|s| triangle.at(s));
+    let corners = [a[0], a[1], a[2], b[0], b[1], b[2]];
+    let mut screen = [DVec2::ZERO; 6];
+    for (out, p) in screen.iter_mut().zip(corners) {
+        *out = camera.project(p)?.0;
+    }
+    Some(screen)
+}
+
+/// The convex hull of a few screen points, as its edges.
+struct ScreenHull {
+    /// Each edge: its lower and upper end in y and its dx/dy (0 for a level edge).
+    edges: [(DVec2, DVec2, f64); 6],
+    count: usize,
+}
+
+impl ScreenHull {
+    /// The hull of `points` (Andrew's monotone chain).
+    fn new(points: &[DVec2; 6]) -> ScreenHull {
+        let mut sorted = *points;
+        sorted.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+        let turn = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
+        let mut chain = [DVec2::ZERO; 12];
+        let mut n = 0;
+        for pass in 0..2 {
+            let start = n;
+            for i in 0..6 {
+                let p = if pass == 0 { sorted[i] } else { sorted[5 - i] };
+                while n >= start + 2 && turn(chain[n - 2], chain[n - 1], p) <= 0.0 {
+                    n -= 1;
+                }
+                chain[n] = p;
+                n += 1;
+            }
+            // The chain's last point starts the other one.
+            n -= 1;
+        }
+        let count = n.clamp(1, 6);
+        let mut edges = [(DVec2::ZERO, DVec2::ZERO, 0.0); 6];
+        for (i, edge) in edges[..count].iter_mut().enumerate() {
+            let (p, q) = (chain[i], chain[(i + 1) % count]);
+            let (p, q) = if p.y <= q.y { (p, q) } else { (q, p) };
+            let slope = if q.y > p.y {
+                (q.x - p.x) / (q.y - p.y)
+            } else {
+                0.0
+            };
+            *edge = (p, q, slope);
+        }
+        ScreenHull { edges, count }
+    }
+
+    /// The x extent of the hull within the band of rows y0 ≤ y ≤ y1, `None` when it misses it.
+    fn x_range(&self, y0: f64, y1: f64) -> Option<[f64; 2]> {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &(p, q, slope) in &self.edges[..self.count] {
+            if q.y < y0 || p.y > y1 {
+                continue;
+            }
+            let (xa, xb) = if q.y > p.y {
+                let x_at = |y: f64| p.x + slope * (y - p.y);
+                (x_at(y0.max(p.y)), x_at(y1.min(q.y)))
+            } else {
+                (p.x, q.x)
+            };
+            lo = lo.min(xa.min(xb));
+            hi = hi.max(xa.max(xb));
+        }
+        (lo <= hi).then_some([lo, hi])
+    }
+}
+
 /// What a sample's ray sees on a surface at one time.
 #[derive(Clone, Copy, Debug)]
 struct SurfacePoint {
@@ -1290,5 +1395,46 @@ impl Scratch {
         list.push(interval);
         stats.intervals += 1;
         stats.peak_per_sample = stats.peak_per_sample.max(list.len());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_screen_hull_bounds_each_band_of_rows_by_its_edges() {
+        // A unit triangle at the origin sliding 4 px right: its hull has corners (0, 0), (5, 0),
+        // (4, 1) and (0, 1); the other two points lie on or inside it and drop out.
+        let start = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(0.0, 1.0),
+        ];
+        let corners: [DVec2; 6] =
+            std::array::from_fn(|i| start[i % 3] + DVec2::X * if i < 3 { 0.0 } else { 4.0 });
+        let hull = ScreenHull::new(&corners);
+        assert_eq!(
+            hull.count, 4,
+            "the start's (1, 0) and the end's (4, 1) lie inside"
+        );
+        assert_eq!(hull.x_range(0.0, 0.0), Some([0.0, 5.0]));
+        assert_eq!(hull.x_range(0.5, 0.5), Some([0.0, 4.5]));
+        assert_eq!(hull.x_range(0.25, 1.5), Some([0.0, 4.75]));
+        assert_eq!(hull.x_range(1.01, 2.0), None);
+        assert_eq!(hull.x_range(-3.0, -0.01), None);
+        // Every point of the path lies within its band's range.
+        for step in 0..=8 {
+            let shift = 0.5 * f64::from(step);
+            for (u, v) in [(0.2, 0.3), (0.9, 0.05), (0.0, 1.0), (0.5, 0.5)] {
+                let p = DVec2::new(u * (1.0 - v) + shift, v);
+                let [lo, hi] = hull.x_range(p.y, p.y).unwrap();
+                assert!(lo <= p.x && p.x <= hi, "{p} outside [{lo}, {hi}]");
+            }
+        }
+        // All six points the same (a still corner set): a one-point hull.
+        let point = ScreenHull::new(&[DVec2::new(2.0, 3.0); 6]);
+        assert_eq!(point.x_range(2.5, 3.5), Some([2.0, 2.0]));
+        assert_eq!(point.x_range(3.5, 4.0), None);
     }
 }

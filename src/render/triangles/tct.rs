@@ -121,6 +121,7 @@ impl MovingTriangle {
     /// Perspective-correct barycentric weights of the ray `d`'s hit at s: each corner's weight
     /// is the opposite edge's triple product, normalized.
     #[must_use]
+    #[inline]
     pub fn barycentric(&self, d: DVec3, s: f64) -> [f64; 3] {
         let [a, b, c] = self.at(s);
         let w = [d.dot(b.cross(c)), d.dot(c.cross(a)), d.dot(a.cross(b))];
@@ -174,6 +175,7 @@ impl EdgeFunctions {
     /// the triangle, appended to `out` in time order. The roots of the three edge quadratics cut
     /// the window; each piece is tested at its middle, so an inaccurate or double root can move
     /// a boundary by its error but never turn a piece inside out.
+    #[inline]
     pub fn covered(&self, d: DVec3, window: [f64; 2], out: &mut Vec<[f64; 2]>) {
         let mut cuts = [0.0f64; 8];
         let mut n = 0;
