@@ -26,7 +26,7 @@ use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMes
 use intervals::{resolve, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
 use shadow::{Occluder, Occluders, Receiver, ShadowMap};
-use tct::{EdgeFunctions, MovingTriangle};
+use tct::{DepthFunction, EdgeFunctions, MovingTriangle};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
 /// render may hold.
@@ -176,6 +176,8 @@ struct Placed {
     focal_px: f64,
     /// Whether no corner moves: the triangle covers a sample all the time or never, at one depth.
     still: bool,
+    /// Its depth along any ray over the segment.
+    depth: DepthFunction,
 }
 
 /// One triangle over one sub-segment.
@@ -340,6 +342,7 @@ impl<'a> Prepared<'a> {
         let window = triangle.in_front(self.camera.near).unwrap_or([0.0, 0.0]);
         Placed {
             edges: triangle.edge_functions(),
+            depth: triangle.depth_function(),
             triangle,
             window,
             time: segment.time,
@@ -1328,17 +1331,15 @@ impl Scratch {
         }
         self.covered.clear();
         edges.covered(d, window, &mut self.covered);
+        let depth = placed.depth.along(d);
         for k in 0..self.covered.len() {
             let span = self.covered[k];
             self.knots.clear();
-            let Some(z0) = triangle.depth(d, span[0]) else {
+            let Some(z0) = depth.at(span[0]) else {
                 continue;
             };
             let tolerance = tct::DEPTH_TOLERANCE_PX / placed.focal_px;
-            if triangle
-                .depth_knots(d, span, tolerance, &mut self.knots)
-                .is_none()
-            {
+            if depth.knots(span, tolerance, &mut self.knots).is_none() {
                 continue;
             }
             let mut previous = [span[0], z0];
