@@ -666,7 +666,7 @@ impl<'a> Prepared<'a> {
 
     /// The mean colour of a run of several pieces when no shadow map can change its light: it
     /// faces away from each shadowed light all along, or each of its pieces is lit for sure
-    /// ([`ShadowMap::surely_lit`], as [`Prepared::piece_colour`] checks it). The surface (normal, point, colour) is found exactly at every
+    /// ([`ShadowMap::surely_lit_between`] its ends, each biased for its own normal). The surface (normal, point, colour) is found exactly at every
     /// piece's ends and interpolated linearly within each piece, as [`Prepared::piece_colour`]
     /// does; the run is cut where it turns towards or away from a light (eq. 2.5, per piece)
     /// and integrated at three Gauss–Legendre times per cut piece, not per sub-segment: the
@@ -722,16 +722,18 @@ impl<'a> Prepared<'a> {
                     continue;
                 }
                 let map = maps.next()?;
-                // Each piece as `piece_colour` checks it: its own path, time and first normal.
-                let lit = |i: usize| {
-                    map.surely_lit(&Receiver {
-                        path: [ends[i].point, ends[i + 1].point],
-                        normal: ends[i].normal,
-                        span: [time(i), time(i + 1)],
-                        own,
-                    })
+                // Each piece on its own path and time, every end placed once with its normal.
+                let lit = || {
+                    let mut from = map.place(ends[0].point, ends[0].normal)?;
+                    for i in 0..run.len() {
+                        let to = map.place(ends[i + 1].point, ends[i + 1].normal)?;
+                        map.surely_lit_between(from, to, [time(i), time(i + 1)], own)
+                            .then_some(())?;
+                        from = to;
+                    }
+                    Some(())
                 };
-                if !(away || (0..run.len()).all(lit)) {
+                if !(away || lit().is_some()) {
                     return None;
                 }
             }

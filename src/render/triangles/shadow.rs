@@ -241,35 +241,52 @@ impl ShadowMap {
         let Receiver {
             path: [p0, p1],
             normal,
-            ..
+            span,
+            own,
         } = *receiver;
-        // A still receiver's path is one point: located and biased once.
-        let still = p0 == p1;
-        let Some((a, d0)) = self.locate(p0) else {
+        // A still receiver's path is one point: placed once.
+        let Some(a) = self.place(p0, normal) else {
             return false;
         };
-        let Some((b, d1)) = (if still {
-            Some((a, d0))
+        let Some(b) = (if p0 == p1 {
+            Some(a)
         } else {
-            self.locate(p1)
+            self.place(p1, normal)
         }) else {
             return false;
         };
+        self.surely_lit_between(a, b, span, own)
+    }
+
+    /// Where a receiver point `p` with unit `normal` falls (texel coordinates) and the depth
+    /// nearer than which an occluder shadows it (its light depth less the bias); `None` behind
+    /// the light.
+    #[must_use]
+    pub fn place(&self, p: DVec3, normal: DVec3) -> Option<(DVec2, f64)> {
+        let (at, depth) = self.locate(p)?;
+        Some((at, depth - self.bias(depth, p, normal)))
+    }
+
+    /// [`ShadowMap::surely_lit`] for a receiver on triangle `own` moving over `span` between two
+    /// points placed by [`ShadowMap::place`]: its depth limit is the larger of theirs.
+    #[must_use]
+    pub fn surely_lit_between(
+        &self,
+        (a, limit_a): (DVec2, f64),
+        (b, limit_b): (DVec2, f64),
+        span: [f64; 2],
+        own: (u32, u32),
+    ) -> bool {
         if !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
             return false;
         }
-        let limit = d0 - self.bias(d0, p0, normal);
-        let limit = if still {
-            limit
-        } else {
-            limit.max(d1 - self.bias(d1, p1, normal))
-        };
+        let limit = limit_a.max(limit_b);
         let side = i64::from(self.occluders.camera.width);
         let lit = |x: i64, y: i64| {
             let index = (y * side + x) as usize;
-            f64::from(self.nearest[index].except(receiver.own)) >= limit
+            f64::from(self.nearest[index].except(own)) >= limit
                 || self
-                    .others_during(x, y, receiver)
+                    .others_during(x, y, span, own)
                     .all(|(o, [a0, a1])| o.piece.depth_at(a0).min(o.piece.depth_at(a1)) >= limit)
         };
         let (lo, hi) = if a.y <= b.y { (a, b) } else { (b, a) };
@@ -305,22 +322,23 @@ impl ShadowMap {
         Some((screen - DVec2::splat(0.5), depth))
     }
 
-    /// The occluder pieces of texel (x, y) from triangles other than `receiver`'s own that
-    /// overlap its span, each with the times they overlap.
-    fn others_during<'m>(
-        &'m self,
+    /// The occluder pieces of texel (x, y) from triangles other than `own` that overlap `span`,
+    /// each with the times they overlap.
+    fn others_during(
+        &self,
         x: i64,
         y: i64,
-        receiver: &'m Receiver,
-    ) -> impl Iterator<Item = (&'m Occluder, [f64; 2])> + 'm {
-        let [t0, t1] = receiver.span;
+        span: [f64; 2],
+        own: (u32, u32),
+    ) -> impl Iterator<Item = (&Occluder, [f64; 2])> {
+        let [t0, t1] = span;
         // A texel's pieces are in time order and do not overlap (one resolve's output).
         let list = self.texel(x, y);
         let first = list.partition_point(|o| o.piece.t[1] < t0);
         list[first..]
             .iter()
             .take_while(move |o| o.piece.t[0] <= t1)
-            .filter(move |o| o.id != receiver.own)
+            .filter(move |o| o.id != own)
             .map(move |o| (o, [o.piece.t[0].max(t0), o.piece.t[1].min(t1)]))
             .filter(|(_, [a0, a1])| a0 <= a1)
     }
@@ -503,7 +521,7 @@ impl ShadowMap {
         // The footprint of the middle: a traced receiver's piece starts on a grid line.
         for ((x, y), _) in Self::footprint(middle) {
             let mut run: Option<[f64; 2]> = None;
-            for (o, [a0, a1]) in self.others_during(x, y, receiver) {
+            for (o, [a0, a1]) in self.others_during(x, y, receiver.span, receiver.own) {
                 // The part of [a0, a1] where the occluder is nearer than the limit.
                 let g0 = o.piece.depth_at(a0) - limit(a0);
                 let g1 = o.piece.depth_at(a1) - limit(a1);
