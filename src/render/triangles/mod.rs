@@ -666,12 +666,13 @@ impl<'a> Prepared<'a> {
 
     /// The mean colour of a run of several pieces when no shadow map can change its light: it
     /// faces away from each shadowed light all along, or each of its pieces is lit for sure
-    /// ([`ShadowMap::surely_lit_between`] its ends, each biased for its own normal). The surface (normal, point, colour) is found exactly at every
-    /// piece's ends and interpolated linearly within each piece, as [`Prepared::piece_colour`]
-    /// does; the run is cut where it turns towards or away from a light (eq. 2.5, per piece)
-    /// and integrated at three Gauss–Legendre times per cut piece, not per sub-segment: the
-    /// light changes smoothly across a sub-segment's end, where the pose is continuous. `None`
-    /// when a shadow may fall on the run.
+    /// ([`ShadowMap::surely_lit_between`] its ends, each biased for its own normal). The
+    /// surface (normal, point, colour) is found exactly at every piece's ends and interpolated
+    /// linearly within each piece, as [`Prepared::piece_colour`] does; the run is cut where it
+    /// turns towards or away from a light (eq. 2.5, per piece) and integrated at three
+    /// Gauss–Legendre times per cut piece, not per sub-segment: the light changes smoothly
+    /// across a sub-segment's end, where the pose is continuous. `None` when a shadow may fall
+    /// on the run.
     fn lit_run_colour(
         &self,
         run: &[Interval],

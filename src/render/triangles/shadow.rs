@@ -232,10 +232,10 @@ impl ShadowMap {
 
     /// Whether `receiver` is lit throughout its span: in every texel its bilinear lookups can
     /// read along its path, either every other triangle's occluder of the exposure lies beyond
-    /// its depth limit (one look at the texel's [`Nearest`]), or every other triangle's occluder
-    /// during its span does. The path's texels are walked row by row (a straight path in the world projects to a
-    /// straight one in the map); the depth limit is the larger of the path's ends'. A path
-    /// sweeping more than [`MAX_SURELY_LIT_TEXELS`] is not checked.
+    /// its depth limit (one look at the texel's nearest occluders), or every other triangle's
+    /// occluder during its span does. The path's texels are walked row by row (a straight path
+    /// in the world projects to a straight one in the map); the depth limit is the larger of the
+    /// path's ends'. A path sweeping more than [`MAX_SURELY_LIT_TEXELS`] is not checked.
     #[must_use]
     pub fn surely_lit(&self, receiver: &Receiver) -> bool {
         let Receiver {
