@@ -103,7 +103,39 @@ pub fn read_exr(path: &Path) -> Result<Framebuffer> {
 ///
 /// The value is clamped to [0, 1], encoded with the sRGB transfer curve (IEC 61966-2-1) and
 /// rounded to the nearest of 0..=255. NaN encodes as 0.
+///
+/// The curve rises, so a value's code is the number of codes whose least value lies at or below
+/// it: eight comparisons in a table found once from the curve, instead of a power per channel.
+/// The same codes as the curve for every f32.
+#[must_use]
 pub fn linear_to_srgb8(v: f32) -> u8 {
+    srgb8_thresholds().partition_point(|&least| least <= v) as u8
+}
+
+/// For each code 1..=255, the least f32 the curve encodes to it or above: found by bisection
+/// over the bit patterns of [0, 1], whose order is their values' order.
+fn srgb8_thresholds() -> &'static [f32; 255] {
+    static THRESHOLDS: std::sync::OnceLock<[f32; 255]> = std::sync::OnceLock::new();
+    THRESHOLDS.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let code = i as u8 + 1;
+            // The curve gives 0 at the low end and 255 at the high end.
+            let (mut low, mut high) = (0.0f32.to_bits(), 1.0f32.to_bits());
+            while high - low > 1 {
+                let middle = low + (high - low) / 2;
+                if srgb8_by_curve(f32::from_bits(middle)) >= code {
+                    high = middle;
+                } else {
+                    low = middle;
+                }
+            }
+            f32::from_bits(high)
+        })
+    })
+}
+
+/// [`linear_to_srgb8`] evaluated on the curve itself.
+fn srgb8_by_curve(v: f32) -> u8 {
     let linear = if v.is_nan() {
         0.0
     } else {
@@ -150,5 +182,35 @@ mod tests {
         assert_eq!(linear_to_srgb8(-0.5), 0);
         assert_eq!(linear_to_srgb8(7.0), 255);
         assert_eq!(linear_to_srgb8(f32::NAN), 0);
+    }
+
+    #[test]
+    fn the_table_gives_the_curves_codes() {
+        // Each code's least value, and the float just below it, which still gets the code before.
+        for (i, &least) in srgb8_thresholds().iter().enumerate() {
+            let code = i as u8 + 1;
+            assert_eq!(srgb8_by_curve(least), code);
+            assert_eq!(linear_to_srgb8(least), code);
+            let below = f32::from_bits(least.to_bits() - 1);
+            assert_eq!(srgb8_by_curve(below), code - 1);
+            assert_eq!(linear_to_srgb8(below), code - 1);
+        }
+        // A million values spread over the bit patterns of [0, 2], both signs, and the odd ones.
+        let top = 2.0f32.to_bits();
+        for k in 0..1_000_000u32 {
+            let bits = (u64::from(k) * u64::from(top) / 1_000_000) as u32;
+            for v in [f32::from_bits(bits), -f32::from_bits(bits)] {
+                assert_eq!(linear_to_srgb8(v), srgb8_by_curve(v), "{v}");
+            }
+        }
+        for v in [
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -0.0,
+            f32::MIN_POSITIVE,
+        ] {
+            assert_eq!(linear_to_srgb8(v), srgb8_by_curve(v), "{v}");
+        }
     }
 }
