@@ -952,12 +952,10 @@ impl<'a> Prepared<'a> {
     /// The shading normal (world, facing the eye: both sides of a triangle are drawn) and the
     /// world point the ray `d` sees on `item` at segment fraction `s`.
     fn surface(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> (DVec3, DVec3) {
-        let (normal, point, _) =
-            self.surface_with(item, triangle, d, s, triangle.barycentric(d, s));
-        (normal, point)
+        self.surface_with(item, triangle, d, s, triangle.barycentric(d, s))
     }
 
-    /// [`Prepared::surface`] and [`Prepared::albedo`] at once, with the camera depth.
+    /// [`Prepared::surface`] and [`Prepared::albedo`] at once.
     fn surface_point(
         &self,
         item: &Item,
@@ -966,17 +964,16 @@ impl<'a> Prepared<'a> {
         s: f64,
     ) -> SurfacePoint {
         let weights = triangle.barycentric(d, s);
-        let (normal, point, depth) = self.surface_with(item, triangle, d, s, weights);
+        let (normal, point) = self.surface_with(item, triangle, d, s, weights);
         SurfacePoint {
             normal,
             point,
-            depth,
             albedo: self.albedo_with(item, weights),
         }
     }
 
-    /// The shading normal, world point and camera depth where the ray `d` meets `item` at
-    /// segment fraction `s`, at barycentric `weights`.
+    /// The shading normal and world point where the ray `d` meets `item` at segment fraction
+    /// `s`, at barycentric `weights`.
     fn surface_with(
         &self,
         item: &Item,
@@ -984,7 +981,7 @@ impl<'a> Prepared<'a> {
         d: DVec3,
         s: f64,
         weights: [f64; 3],
-    ) -> (DVec3, DVec3, f64) {
+    ) -> (DVec3, DVec3) {
         let (_, mesh, _) = &self.objects[item.object as usize];
         let normals = mesh.normals[item.triangle as usize];
         let local: DVec3 = (0..3).map(|k| normals[k] * weights[k]).sum();
@@ -994,7 +991,7 @@ impl<'a> Prepared<'a> {
             world = -world;
         }
         let depth = triangle.depth(d, s).unwrap_or(0.0);
-        (world, self.view_to_world.transform_point3(d * depth), depth)
+        (world, self.view_to_world.transform_point3(d * depth))
     }
 
     /// The colour the ray `d` sees on `item` at segment fraction `s` (time `t`), in the shadows
@@ -1207,8 +1204,6 @@ struct SurfacePoint {
     normal: DVec3,
     /// World point.
     point: DVec3,
-    /// Camera depth along the ray.
-    depth: f64,
     /// Colour.
     albedo: [f64; 3],
 }
@@ -1219,7 +1214,6 @@ impl SurfacePoint {
         SurfacePoint {
             normal: self.normal.lerp(other.normal, u).normalize_or_zero(),
             point: self.point.lerp(other.point, u),
-            depth: self.depth + (other.depth - self.depth) * u,
             albedo: [0, 1, 2].map(|c| self.albedo[c] + (other.albedo[c] - self.albedo[c]) * u),
         }
     }
