@@ -17,7 +17,7 @@ use std::ops::Range;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::collapse::{Collapser, Edges, FacesAround, Known, Vertices};
+use super::collapse::{Collapser, Edges, FacesAround, Known, Vertices, VerticesMut};
 use super::heap::Heap;
 use super::Stats;
 
@@ -30,10 +30,9 @@ pub const BLOCK_VERTICES: usize = 8192;
 /// against 40,294 with 64, and ran 7–10 % faster on two threads (docs/math.md, "Blocks").
 pub const MAX_BLOCKS: usize = 16;
 
-/// What the blocks leave for the single collapser.
+/// What the blocks leave for the single collapser (the vertices were collapsed in place: dead
+/// ones are simply no longer used).
 pub(super) struct Blocked {
-    /// The vertices, in place: dead ones are simply no longer used.
-    pub vertices: Vertices,
     /// The live faces in the order given, with their places among the faces given.
     pub faces: Vec<([u32; 3], u32)>,
     /// The faces around each vertex and the edges given, if still those of the faces (no block
@@ -49,7 +48,7 @@ pub(super) struct Blocked {
 /// reduction. A mesh too small for two blocks comes back as it went in.
 #[allow(clippy::too_many_arguments)] // One call; the mesh's parts and the collapse's settings.
 pub(super) fn collapse_in_blocks(
-    vertices: Vertices,
+    vertices: &mut Vertices,
     faces: Vec<[u32; 3]>,
     around: FacesAround,
     edges: Edges,
@@ -59,11 +58,10 @@ pub(super) fn collapse_in_blocks(
     direction: Option<DVec3>,
     progress: &mut dyn FnMut(usize),
 ) -> Blocked {
-    let n = vertices.positions.len();
+    let n = vertices.points.len();
     let blocks = (n / BLOCK_VERTICES).min(MAX_BLOCKS);
     if blocks < 2 || faces.len() <= target_faces {
         return Blocked {
-            vertices,
             faces: faces.into_iter().zip(0..).collect(),
             known: Known {
                 around: Some(around),
@@ -98,7 +96,7 @@ pub(super) fn collapse_in_blocks(
     let total = faces.len();
     drop(faces);
 
-    let mut collapsers: Vec<(Collapser, Vec<u32>)> = split(vertices, channels, &ranges)
+    let mut collapsers: Vec<(Collapser, Vec<u32>)> = split(vertices.as_mut(), channels, &ranges)
         .into_par_iter()
         .zip(within)
         .zip(&ranges)
@@ -155,12 +153,13 @@ pub(super) fn collapse_in_blocks(
     }
 
     let mut stats = Stats::default();
-    let mut parts = Vec::with_capacity(collapsers.len());
     let mut live = seams;
-    for ((collapser, places), range) in collapsers.into_iter().zip(&ranges) {
-        stats += collapser.stats;
-        let (vertices, faces) = collapser.into_parts();
-        parts.push(vertices);
+    let blocks: Vec<_> = collapsers
+        .into_par_iter()
+        .map(|(collapser, places)| (collapser.stats, collapser.into_faces(), places))
+        .collect();
+    for ((block_stats, faces, places), range) in blocks.into_iter().zip(&ranges) {
+        stats += block_stats;
         let offset = range.start as u32;
         live.extend(
             faces
@@ -170,60 +169,24 @@ pub(super) fn collapse_in_blocks(
     }
     live.par_sort_unstable_by_key(|&(_, place)| place);
     Blocked {
-        vertices: join(parts),
         faces: live,
         known: Known::default(),
         stats,
     }
 }
 
-/// `vertices` (with `channels` carried numbers each) cut into the runs `ranges`.
-fn split(vertices: Vertices, channels: usize, ranges: &[Range<usize>]) -> Vec<Vertices> {
-    ranges
-        .iter()
-        .map(|range| {
-            let range = range.clone();
-            Vertices {
-                positions: vertices.positions[range.clone()].to_vec(),
-                quadrics: vertices.quadrics[range.clone()].to_vec(),
-                boundary: vertices.boundary[range.clone()].to_vec(),
-                locked: vertices.locked[range.clone()].to_vec(),
-                carried: vertices.carried[range.start * channels..range.end * channels].to_vec(),
-                motions: if vertices.motions.is_empty() {
-                    Vec::new()
-                } else {
-                    vertices.motions[range.clone()].to_vec()
-                },
-                limits: vertices.limits.as_ref().map(|l| l[range].to_vec()),
-            }
-        })
-        .collect()
-}
-
-/// The runs of [`split`] joined again.
-fn join(parts: Vec<Vertices>) -> Vertices {
-    let mut whole = Vertices {
-        positions: Vec::new(),
-        quadrics: Vec::new(),
-        boundary: Vec::new(),
-        locked: Vec::new(),
-        carried: Vec::new(),
-        motions: Vec::new(),
-        limits: parts
-            .first()
-            .and_then(|p| p.limits.as_ref())
-            .map(|_| Vec::new()),
-    };
-    for part in parts {
-        whole.positions.extend(part.positions);
-        whole.quadrics.extend(part.quadrics);
-        whole.boundary.extend(part.boundary);
-        whole.locked.extend(part.locked);
-        whole.carried.extend(part.carried);
-        whole.motions.extend(part.motions);
-        if let (Some(all), Some(limits)) = (whole.limits.as_mut(), part.limits) {
-            all.extend(limits);
-        }
+/// `vertices` (with `channels` carried numbers each) cut into the consecutive runs `ranges`.
+fn split<'a>(
+    vertices: VerticesMut<'a>,
+    channels: usize,
+    ranges: &[Range<usize>],
+) -> Vec<VerticesMut<'a>> {
+    let mut parts = Vec::with_capacity(ranges.len());
+    let mut rest = vertices;
+    for range in ranges {
+        let (part, after) = rest.split_at(range.len(), channels);
+        parts.push(part);
+        rest = after;
     }
-    whole
+    parts
 }

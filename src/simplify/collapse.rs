@@ -75,15 +75,30 @@ enum Refusal {
     Limit,
 }
 
+/// What costing and checking a collapse read of a vertex, side by side in two cache lines, where
+/// six arrays took up to seven (the loop waits on these loads: docs/history.md, "Issue 12, fifth
+/// part").
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(align(64))]
+pub(super) struct Point {
+    pub quadric: Quadric,
+    pub position: DVec3,
+    /// On an edge of one face.
+    pub boundary: bool,
+    /// On an edge of more than two faces: never moves.
+    pub locked: bool,
+    /// Faces around it that the collapser working on it does not hold (see `super::blocks`);
+    /// a vertex with any may not be an end of a collapse. Zero outside a collapser.
+    pub faces_elsewhere: u32,
+    /// The collapser's last visit that marked it (see `Collapser::next_visit`): sets of
+    /// neighbours without sorting or clearing. Zero outside a collapser.
+    pub mark: u32,
+}
+
 /// What a collapse works on per vertex, and gives back: the rest of the collapser is
 /// bookkeeping.
 pub(super) struct Vertices {
-    pub positions: Vec<DVec3>,
-    pub quadrics: Vec<Quadric>,
-    /// On an edge of one face.
-    pub boundary: Vec<bool>,
-    /// On an edge of more than two faces: never moves.
-    pub locked: Vec<bool>,
+    pub points: Vec<Point>,
     /// Channels carried along, `channels` numbers per vertex, interpolated along each edge.
     pub carried: Vec<f32>,
     /// Motion per vertex (for [`super::Weighting::PerVertex`], else empty), carried like a channel.
@@ -92,7 +107,58 @@ pub(super) struct Vertices {
     pub limits: Option<Vec<f64>>,
 }
 
+/// The vertices a collapser works on, borrowed from [`Vertices`] (all of them, or a block's run
+/// of them): the blocks collapse in place, so nothing is copied out and joined back.
+pub(super) struct VerticesMut<'a> {
+    pub points: &'a mut [Point],
+    pub carried: &'a mut [f32],
+    /// Empty when there are no motions per vertex.
+    pub motions: &'a mut [DVec3],
+    pub limits: Option<&'a mut [f64]>,
+}
+
+impl<'a> VerticesMut<'a> {
+    /// The first `mid` vertices and the rest (`channels` carried numbers each).
+    pub fn split_at(self, mid: usize, channels: usize) -> (VerticesMut<'a>, VerticesMut<'a>) {
+        let (points, points_rest) = self.points.split_at_mut(mid);
+        let (carried, carried_rest) = self.carried.split_at_mut(mid * channels);
+        let motions_mid = if self.motions.is_empty() { 0 } else { mid };
+        let (motions, motions_rest) = self.motions.split_at_mut(motions_mid);
+        let (limits, limits_rest) = match self.limits {
+            Some(l) => {
+                let (l, rest) = l.split_at_mut(mid);
+                (Some(l), Some(rest))
+            }
+            None => (None, None),
+        };
+        (
+            VerticesMut {
+                points,
+                carried,
+                motions,
+                limits,
+            },
+            VerticesMut {
+                points: points_rest,
+                carried: carried_rest,
+                motions: motions_rest,
+                limits: limits_rest,
+            },
+        )
+    }
+}
+
 impl Vertices {
+    /// All of them, to collapse.
+    pub fn as_mut(&mut self) -> VerticesMut<'_> {
+        VerticesMut {
+            points: &mut self.points,
+            carried: &mut self.carried,
+            motions: &mut self.motions,
+            limits: self.limits.as_deref_mut(),
+        }
+    }
+
     /// The vertices of `faces` over `positions` (all indices valid, no face with a repeated
     /// corner; `around` them) before any collapse: each one's quadric, boundary and lock from the
     /// faces around it; the edges (see [`Edges`]); and how many edges have more than two faces.
@@ -110,33 +176,35 @@ impl Vertices {
             ((b - a).cross(c - a), a)
         };
         // Per vertex: its area-weighted face planes.
-        let mut quadrics: Vec<Quadric> = (0..n)
+        let mut points: Vec<Point> = (0..n)
             .into_par_iter()
             .map(|v| {
-                let mut q = Quadric::default();
+                let mut quadric = Quadric::default();
                 for &f in around.of(v) {
                     let (cross, point) = face_plane(f as usize);
                     let area2 = cross.length();
                     if area2 > 0.0 {
-                        q += Quadric::plane(cross / area2, point, 0.5 * area2);
+                        quadric += Quadric::plane(cross / area2, point, 0.5 * area2);
                     }
                 }
-                q
+                Point {
+                    quadric,
+                    position: positions[v],
+                    ..Point::default()
+                }
             })
             .collect();
-        let mut boundary = vec![false; n];
-        let mut locked = vec![false; n];
         let mut non_manifold_edges = 0;
         let edges = around.edges(faces);
         for &[v, w, shared] in &edges {
             let (v, w) = (v as usize, w as usize);
             if shared > 2 {
                 non_manifold_edges += 1;
-                locked[v] = true;
-                locked[w] = true;
+                points[v].locked = true;
+                points[w].locked = true;
             } else if shared == 1 {
-                boundary[v] = true;
-                boundary[w] = true;
+                points[v].boundary = true;
+                points[w].boundary = true;
                 let f = around
                     .of(v)
                     .iter()
@@ -151,16 +219,13 @@ impl Vertices {
                         positions[v],
                         BOUNDARY_PENALTY * edge.length_squared(),
                     );
-                    quadrics[v] += penalty;
-                    quadrics[w] += penalty;
+                    points[v].quadric += penalty;
+                    points[w].quadric += penalty;
                 }
             }
         }
         let vertices = Vertices {
-            positions,
-            quadrics,
-            boundary,
-            locked,
+            points,
             carried,
             motions,
             limits,
@@ -250,19 +315,25 @@ impl FacesAround {
     }
 }
 
+/// A face as the collapser keeps it: what a collapse reads of it, side by side.
+#[derive(Clone, Copy)]
+struct Face {
+    corners: [u32; 3],
+    /// Its normal in the input mesh (unit, or zero for a face without area).
+    first_normal: Vec3,
+}
+
 /// The mesh being collapsed.
-pub(super) struct Collapser {
-    vertices: Vertices,
-    faces: Vec<[u32; 3]>,
+pub(super) struct Collapser<'a> {
+    vertices: VerticesMut<'a>,
+    faces: Vec<Face>,
     face_alive: Vec<bool>,
-    /// Each face's normal in the input mesh (unit, or zero for a face without area).
-    first_normals: Vec<Vec3>,
     channels: usize,
     /// One motion direction for every edge (for [`super::Weighting::Direction`]).
     direction: Option<DVec3>,
-    /// Per vertex, faces around it that this collapser does not hold (see `super::blocks`;
-    /// empty when it holds them all). A vertex with any may not be an end of a collapse.
-    faces_elsewhere: Vec<u32>,
+    /// Whether some vertices have faces elsewhere ([`Point::faces_elsewhere`]): then the
+    /// vertices are shared, and their marks and counts go back to zero when done.
+    shared: bool,
     /// The live faces around each vertex. A merged vertex's list is appended at the end; a face
     /// that dies leaves its third corner's list.
     around: FacesAround,
@@ -271,28 +342,26 @@ pub(super) struct Collapser {
     pub live_faces: usize,
     pub stats: Stats,
     heap: Heap,
-    /// Per vertex, the last visit that marked it (see `next_visit`): sets of neighbours
-    /// without sorting or clearing.
-    mark: Vec<u32>,
+    /// The last mark given (see [`Point::mark`]).
     visit: u32,
-    /// The edges around a merged vertex, costed before they are queued.
-    costed: Vec<(f64, Entry)>,
+    /// The neighbours of a merged vertex, gathered before they are costed.
+    neighbours: Vec<u32>,
 }
 
-impl Collapser {
+impl<'a> Collapser<'a> {
     /// Queue every edge of `faces` over `vertices` (all indices valid, no face with a repeated
     /// corner; `first_normals` one per face, see [`first_normals`]) whose ends have no
     /// `faces_elsewhere` (empty: none has). What is not `known` of the faces is found here.
     pub fn new(
-        vertices: Vertices,
+        vertices: VerticesMut<'a>,
         faces: Vec<[u32; 3]>,
         first_normals: Vec<Vec3>,
         faces_elsewhere: Vec<u32>,
         known: Known,
         channels: usize,
         direction: Option<DVec3>,
-    ) -> Collapser {
-        let n = vertices.positions.len();
+    ) -> Collapser<'a> {
+        let n = vertices.points.len();
         let Known { around, edges } = known;
         let mut around = around.unwrap_or_else(|| FacesAround::new(n, &faces));
         // Merged vertices' lists are appended: room for about as many again as there are.
@@ -301,20 +370,28 @@ impl Collapser {
         let mut collapser = Collapser {
             live_faces: faces.len(),
             face_alive: vec![true; faces.len()],
-            first_normals,
             vertices,
-            faces,
+            faces: faces
+                .into_iter()
+                .zip(first_normals)
+                .map(|(corners, first_normal)| Face {
+                    corners,
+                    first_normal,
+                })
+                .collect(),
             channels,
             direction,
-            faces_elsewhere,
+            shared: !faces_elsewhere.is_empty(),
             around,
             version: vec![0; n],
             stats: Stats::default(),
             heap: Heap::default(),
-            mark: vec![0; n],
             visit: 0,
-            costed: Vec::new(),
+            neighbours: Vec::new(),
         };
+        for (point, &elsewhere) in collapser.vertices.points.iter_mut().zip(&faces_elsewhere) {
+            point.faces_elsewhere = elsewhere;
+        }
         let this = &collapser;
         let entries: Vec<(f64, Entry)> = edges
             .par_iter()
@@ -324,17 +401,23 @@ impl Collapser {
         collapser
     }
 
-    /// The vertices as collapsed, the live faces, and each face's place among those given.
-    pub fn into_parts(self) -> (Vertices, Vec<([u32; 3], u32)>) {
-        let faces = self
-            .faces
+    /// The live faces, each with its place among those given (the vertices were collapsed in
+    /// place, and are left with no marks or faces elsewhere for the next collapser).
+    pub fn into_faces(self) -> Vec<([u32; 3], u32)> {
+        if self.shared {
+            for point in self.vertices.points.iter_mut() {
+                point.faces_elsewhere = 0;
+                point.mark = 0;
+            }
+        }
+        self.faces
             .into_iter()
+            .map(|face| face.corners)
             .zip(self.face_alive)
             .enumerate()
             .filter(|(_, (_, alive))| *alive)
             .map(|(f, (face, _))| (face, f as u32))
-            .collect();
-        (self.vertices, faces)
+            .collect()
     }
 
     /// The queue's cheapest bin, if any edge waits.
@@ -368,7 +451,7 @@ impl Collapser {
     /// below: collapse instead the cheapest edge on a boundary that may collapse, which takes
     /// one. Returns whether there was one (a closed mesh has none: its face count is even).
     pub fn finish_on_boundary(&mut self, target_faces: usize) -> bool {
-        if self.live_faces != target_faces + 1 || !self.vertices.boundary.contains(&true) {
+        if self.live_faces != target_faces + 1 || !self.vertices.points.iter().any(|p| p.boundary) {
             return false;
         }
         let on_boundary: Vec<Entry> = self
@@ -377,11 +460,11 @@ impl Collapser {
             .filter(|e| {
                 let (a, b) = (e.a as usize, e.b as usize);
                 self.version[a] + self.version[b] == e.stamp
-                    && self.vertices.boundary[a]
-                    && self.vertices.boundary[b]
+                    && self.vertices.points[a].boundary
+                    && self.vertices.points[b].boundary
                     && self
                         .faces_of(a)
-                        .filter(|&f| self.faces[f].contains(&e.b))
+                        .filter(|&f| self.faces[f].corners.contains(&e.b))
                         .count()
                         == 1
             })
@@ -406,14 +489,19 @@ impl Collapser {
     /// or when the quadric is singular the cheapest of the two ends and the middle (§4); a
     /// locked end stays put. `None` when both ends are locked or either has faces elsewhere.
     fn placement(&self, a: usize, b: usize) -> Option<(f64, DVec3)> {
-        if !self.faces_elsewhere.is_empty()
-            && (self.faces_elsewhere[a] > 0 || self.faces_elsewhere[b] > 0)
-        {
+        let (point_a, point_b) = (&self.vertices.points[a], &self.vertices.points[b]);
+        if point_a.faces_elsewhere > 0 || point_b.faces_elsewhere > 0 {
             return None;
         }
-        let q = self.vertices.quadrics[a] + self.vertices.quadrics[b];
-        let (pa, pb) = (self.vertices.positions[a], self.vertices.positions[b]);
-        let p = match (self.vertices.locked[a], self.vertices.locked[b]) {
+        let q = self.vertices.points[a].quadric + self.vertices.points[b].quadric;
+        let (pa, pb) = (
+            self.vertices.points[a].position,
+            self.vertices.points[b].position,
+        );
+        let p = match (
+            self.vertices.points[a].locked,
+            self.vertices.points[b].locked,
+        ) {
             (true, true) => return None,
             (true, false) => pa,
             (false, true) => pb,
@@ -437,7 +525,7 @@ impl Collapser {
             Some(d) => d,
             None => return 1.0,
         };
-        let edge = self.vertices.positions[b] - self.vertices.positions[a];
+        let edge = self.vertices.points[b].position - self.vertices.points[a].position;
         let norms = edge.length() * motion.length();
         if !(norms > 0.0) {
             return 1.0;
@@ -454,7 +542,7 @@ impl Collapser {
     /// fan (once on a boundary).
     fn corners_around(&self, v: usize) -> impl Iterator<Item = usize> + '_ {
         self.faces_of(v)
-            .flat_map(move |f| self.faces[f])
+            .flat_map(move |f| self.faces[f].corners)
             .map(|w| w as usize)
             .filter(move |&w| w != v)
     }
@@ -462,7 +550,7 @@ impl Collapser {
     /// A fresh mark: no vertex carries it yet.
     fn next_visit(&mut self) -> u32 {
         if self.visit == u32::MAX {
-            self.mark.fill(0);
+            self.vertices.points.iter_mut().for_each(|p| p.mark = 0);
             self.visit = 0;
         }
         self.visit += 1;
@@ -480,7 +568,7 @@ impl Collapser {
         let mut faces_a = 0usize;
         for f in self.faces_of(a) {
             faces_a += 1;
-            let face = self.faces[f];
+            let face = self.faces[f].corners;
             if face.contains(&(b as u32)) {
                 if shared < 2 {
                     opposite[shared] = *face
@@ -525,19 +613,22 @@ impl Collapser {
     fn reshaped_faces(&self, a: usize, b: usize, p: DVec3, limit: Option<f64>) -> Option<Refusal> {
         for (moved, other) in [(a, b), (b, a)] {
             for f in self.faces_of(moved) {
-                let face = self.faces[f];
+                let Face {
+                    corners: face,
+                    first_normal,
+                } = self.faces[f];
                 if face.contains(&(other as u32)) {
                     continue;
                 }
-                let old = face.map(|w| self.vertices.positions[w as usize]);
+                let old = face.map(|w| self.vertices.points[w as usize].position);
                 let new = face.map(|w| {
                     if w as usize == moved {
                         p
                     } else {
-                        self.vertices.positions[w as usize]
+                        self.vertices.points[w as usize].position
                     }
                 });
-                if folds(old, new, self.first_normals[f]) {
+                if folds(old, new, first_normal) {
                     return Some(Refusal::Fold);
                 }
                 if let (Some(limit), Some(limits)) = (limit, &self.vertices.limits) {
@@ -566,12 +657,12 @@ impl Collapser {
     /// The link condition and the boundary rules for edge (a, b) with `shared` faces whose
     /// corners off the edge are `opposite`.
     fn topology_holds(&mut self, a: usize, b: usize, shared: usize, opposite: &[u32]) -> bool {
-        if shared == 2 && self.vertices.boundary[a] && self.vertices.boundary[b] {
+        if shared == 2 && self.vertices.points[a].boundary && self.vertices.points[b].boundary {
             return false;
         }
         // A corner opposite the edge with three faces would keep two, back to back.
         if opposite.iter().any(|&o| {
-            !self.vertices.boundary[o as usize] && self.faces_around_count(o as usize) <= 3
+            !self.vertices.points[o as usize].boundary && self.faces_around_count(o as usize) <= 3
         }) {
             return false;
         }
@@ -579,24 +670,25 @@ impl Collapser {
         // re-marked `counted`.
         let of_a = self.next_visit();
         let counted = self.next_visit();
-        let mut mark = std::mem::take(&mut self.mark);
+        // The corners come from the face lists, the marks from the points: borrowed apart.
+        let points = std::mem::take(&mut self.vertices.points);
         for w in self.corners_around(a) {
-            mark[w] = of_a;
+            points[w].mark = of_a;
         }
         let mut common = 0;
         for w in self.corners_around(b) {
-            if mark[w] == of_a {
-                mark[w] = counted;
+            if points[w].mark == of_a {
+                points[w].mark = counted;
                 common += 1;
             }
         }
-        self.mark = mark;
+        self.vertices.points = points;
         common == shared
     }
 
     /// How many faces are around `v`, held here or not.
     fn faces_around_count(&self, v: usize) -> u32 {
-        self.around.count[v] + self.faces_elsewhere.get(v).copied().unwrap_or(0)
+        self.around.count[v] + self.vertices.points[v].faces_elsewhere
     }
 
     /// Take face `f` out of the list of faces around `v` (the order of the rest may change).
@@ -614,7 +706,10 @@ impl Collapser {
     /// Merge `b` into `a` at `p`: faces on the edge die, `b`'s other faces take `a`, and the
     /// edges around `a` are costed again.
     fn merge(&mut self, a: usize, b: usize, p: DVec3, limit: Option<f64>) {
-        let (pa, pb) = (self.vertices.positions[a], self.vertices.positions[b]);
+        let (pa, pb) = (
+            self.vertices.points[a].position,
+            self.vertices.points[b].position,
+        );
         let along = (pb - pa).length_squared();
         let t = if along > 0.0 {
             ((p - pa).dot(pb - pa) / along).clamp(0.0, 1.0)
@@ -635,17 +730,17 @@ impl Collapser {
         if let (Some(limit), Some(limits)) = (limit, self.vertices.limits.as_mut()) {
             limits[a] = limit;
         }
-        self.vertices.positions[a] = p;
-        let qb = self.vertices.quadrics[b];
-        self.vertices.quadrics[a] += qb;
-        self.vertices.boundary[a] |= self.vertices.boundary[b];
-        self.vertices.locked[a] |= self.vertices.locked[b];
+        self.vertices.points[a].position = p;
+        let qb = self.vertices.points[b].quadric;
+        self.vertices.points[a].quadric += qb;
+        self.vertices.points[a].boundary |= self.vertices.points[b].boundary;
+        self.vertices.points[a].locked |= self.vertices.points[b].locked;
         self.version[b] += 1;
 
         let new_start = self.around.refs.len();
         for i in self.around.range(a) {
             let f = self.around.refs[i] as usize;
-            let face = self.faces[f];
+            let face = self.faces[f].corners;
             if face.contains(&(b as u32)) {
                 self.face_alive[f] = false;
                 self.live_faces -= 1;
@@ -660,8 +755,9 @@ impl Collapser {
         }
         for i in self.around.range(b) {
             let f = self.around.refs[i] as usize;
-            if self.face_alive[f] {
-                for w in &mut self.faces[f] {
+            // The faces on the edge, dead now, are the ones with `a`.
+            if !self.faces[f].corners.contains(&(a as u32)) {
+                for w in &mut self.faces[f].corners {
                     if *w as usize == b {
                         *w = a as u32;
                     }
@@ -675,19 +771,21 @@ impl Collapser {
         self.version[a] += 1;
 
         let seen = self.next_visit();
-        let mut mark = std::mem::take(&mut self.mark);
-        let mut costed = std::mem::take(&mut self.costed);
+        let mut neighbours = std::mem::take(&mut self.neighbours);
+        let points = std::mem::take(&mut self.vertices.points);
         for w in self.corners_around(a) {
-            if mark[w] != seen {
-                mark[w] = seen;
-                costed.extend(self.candidate(a as u32, w as u32));
+            if points[w].mark != seen {
+                points[w].mark = seen;
+                neighbours.push(w as u32);
             }
         }
-        for (cost, entry) in costed.drain(..) {
-            self.heap.push(cost, entry);
+        self.vertices.points = points;
+        for w in neighbours.drain(..) {
+            if let Some((cost, entry)) = self.candidate(a as u32, w) {
+                self.heap.push(cost, entry);
+            }
         }
-        self.mark = mark;
-        self.costed = costed;
+        self.neighbours = neighbours;
     }
 }
 

@@ -183,12 +183,20 @@ pub fn simplify(
     let carried_in = order.gather(values, channels);
     let positions = order.gather(&mesh.positions, 1);
     let normals = first_normals(&positions, &faces);
-    let (vertices, edges, non_manifold_edges) =
+    let (mut vertices, edges, non_manifold_edges) =
         Vertices::new(positions, &faces, &around, carried_in, motions, limits);
     repairs.non_manifold_edges = non_manifold_edges;
     let target = options.target_faces;
     let blocked = blocks::collapse_in_blocks(
-        vertices, faces, around, edges, &normals, target, channels, direction, progress,
+        &mut vertices,
+        faces,
+        around,
+        edges,
+        &normals,
+        target,
+        channels,
+        direction,
+        progress,
     );
     let (faces, normals) = blocked
         .faces
@@ -196,7 +204,7 @@ pub fn simplify(
         .map(|(face, place)| (face, normals[place as usize]))
         .unzip();
     let mut collapser = Collapser::new(
-        blocked.vertices,
+        vertices.as_mut(),
         faces,
         normals,
         Vec::new(),
@@ -214,7 +222,7 @@ pub fn simplify(
     let reached_target = collapser.live_faces <= target;
     let mut stats = collapser.stats;
     stats += blocked.stats;
-    let (vertices, faces) = collapser.into_parts();
+    let faces = collapser.into_faces();
 
     // Keep the vertices live faces use, in input order.
     let mut used = vec![false; order.original.len()];
@@ -234,7 +242,7 @@ pub fn simplify(
     for &(_, v) in &kept {
         let v = v as usize;
         index[v] = out.positions.len() as u32;
-        out.positions.push(vertices.positions[v]);
+        out.positions.push(vertices.points[v].position);
         carried_out.extend_from_slice(&vertices.carried[v * channels..(v + 1) * channels]);
     }
     out.triangles = faces
@@ -287,11 +295,10 @@ impl VertexOrder {
 
     /// Per-vertex values given in input order (`per` of them per vertex), in curve order: each
     /// position's first vertex's.
-    fn gather<T: Copy>(&self, values: &[T], per: usize) -> Vec<T> {
-        self.original
-            .iter()
-            .flat_map(|&v| &values[v as usize * per..(v as usize + 1) * per])
-            .copied()
+    fn gather<T: Copy + Send + Sync>(&self, values: &[T], per: usize) -> Vec<T> {
+        (0..self.original.len() * per)
+            .into_par_iter()
+            .map(|i| values[self.original[i / per] as usize * per + i % per])
             .collect()
     }
 }
@@ -314,19 +321,17 @@ fn repaired_faces(
         .collect();
     repairs.repeated_corners = mesh.triangles.len() - faces.len();
     let mut around = FacesAround::new(n, &faces);
-    let sorted = |mut t: [u32; 3]| {
-        t.sort_unstable();
-        t
-    };
+    // No face repeats a corner, so a face with all three of `t`'s is a face on the same three.
     let repeats: Vec<bool> = faces
         .par_iter()
         .enumerate()
         .map(|(f, &t)| {
-            let corners = sorted(t);
+            let [v, w, x] = t;
+            let lowest = v.min(w).min(x);
             around
-                .of(corners[0] as usize)
+                .of(lowest as usize)
                 .iter()
-                .any(|&g| (g as usize) < f && sorted(faces[g as usize]) == corners)
+                .any(|&g| (g as usize) < f && t.iter().all(|c| faces[g as usize].contains(c)))
         })
         .collect();
     repairs.duplicate_faces = repeats.iter().filter(|&&r| r).count();
