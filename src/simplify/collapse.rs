@@ -493,15 +493,9 @@ impl<'a> Collapser<'a> {
         if point_a.faces_elsewhere > 0 || point_b.faces_elsewhere > 0 {
             return None;
         }
-        let q = self.vertices.points[a].quadric + self.vertices.points[b].quadric;
-        let (pa, pb) = (
-            self.vertices.points[a].position,
-            self.vertices.points[b].position,
-        );
-        let p = match (
-            self.vertices.points[a].locked,
-            self.vertices.points[b].locked,
-        ) {
+        let q = point_a.quadric + point_b.quadric;
+        let (pa, pb) = (point_a.position, point_b.position);
+        let p = match (point_a.locked, point_b.locked) {
             (true, true) => return None,
             (true, false) => pa,
             (false, true) => pb,
