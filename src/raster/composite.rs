@@ -8,7 +8,7 @@
 //! (an instant) this is plain front-to-back compositing with α = opacity(Σw). Why bins, with the
 //! measurements: docs/math.md, "Time bins for coverage".
 
-use super::{opacity, Footprint};
+use super::{larger, opacity, smaller, Footprint};
 use crate::scene::shutter::Shutter;
 
 /// Once this share of the exposure is left unoccluded at a pixel, farther surfaces cannot change
@@ -60,8 +60,8 @@ impl<const B: usize> TimeBins<B> {
 /// The bins that the time window [lo, hi] overlaps.
 fn bin_span<const B: usize>([lo, hi]: [f32; 2], bins: &TimeBins<B>) -> BinSpan {
     let end = B as f32;
-    let u0 = ((lo - bins.start) * bins.bins_per_time).clamp(0.0, end);
-    let u1 = ((hi - bins.start) * bins.bins_per_time).clamp(0.0, end);
+    let u0 = smaller(larger((lo - bins.start) * bins.bins_per_time, 0.0), end);
+    let u1 = smaller(larger((hi - bins.start) * bins.bins_per_time, 0.0), end);
     // Through u32, as in `Sampler::value`: a cheaper conversion than to usize.
     let first = (u0 as u32 as usize).min(B - 1);
     let last = (super::ceil_non_negative(u1) as usize).clamp(first + 1, B);
@@ -155,8 +155,9 @@ impl<const B: usize> PixelState<B> {
         } else {
             bin_span(f.time_window_at(x, y), bins)
         };
-        let same_surface = (span.first..span.last)
-            .all(|b| depth - self.group_depth[b] <= self.group_tolerance[b].max(f.depth_tolerance));
+        let same_surface = (span.first..span.last).all(|b| {
+            depth - self.group_depth[b] <= larger(self.group_tolerance[b], f.depth_tolerance)
+        });
         if !same_surface {
             self.close_group(bins);
         }
@@ -189,7 +190,7 @@ impl<const B: usize> PixelState<B> {
         for b in span.first..span.last {
             let step = depth - self.group_depth[b];
             if self.group_depth[b] == f32::INFINITY
-                || (step > 0.0 && step <= self.group_tolerance[b].min(tolerance))
+                || (step > 0.0 && step <= smaller(self.group_tolerance[b], tolerance))
             {
                 self.group_depth[b] = depth;
                 self.group_tolerance[b] = tolerance;
@@ -213,8 +214,8 @@ impl<const B: usize> PixelState<B> {
         // The window spans two bins or more: it covers the first from u0 and the last up to u1,
         // and every bin between them whole. Those get `scale` × their mass each, marked at the
         // run's ends only, so a wide window costs no more than a narrow one.
-        let head = (first as f32 + 1.0 - u0).max(0.0) * bins.mass[first];
-        let tail = (u1 - (last - 1) as f32).max(0.0) * bins.mass[last - 1];
+        let head = larger(first as f32 + 1.0 - u0, 0.0) * bins.mass[first];
+        let tail = larger(u1 - (last - 1) as f32, 0.0) * bins.mass[last - 1];
         let inner = bins.mass_before[last - 1] - bins.mass_before[first + 1];
         let total = head + tail + inner;
         if total > 0.0 {
