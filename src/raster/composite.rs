@@ -155,9 +155,13 @@ impl<const B: usize> PixelState<B> {
         } else {
             bin_span(f.time_window_at(x, y), bins)
         };
-        let same_surface = (span.first..span.last).all(|b| {
-            depth - self.group_depth[b] <= larger(self.group_tolerance[b], f.depth_tolerance)
-        });
+        let bins_of_span = span.first..span.last;
+        let same_surface = self.group_depth[bins_of_span.clone()]
+            .iter()
+            .zip(&self.group_tolerance[bins_of_span])
+            .all(|(&group_depth, &group_tolerance)| {
+                depth - group_depth <= larger(group_tolerance, f.depth_tolerance)
+            });
         if !same_surface {
             self.close_group(bins);
         }
@@ -187,13 +191,17 @@ impl<const B: usize> PixelState<B> {
     /// cover yet, and where it lies behind by less than the smaller tolerance.
     #[inline]
     fn follow(&mut self, depth: f32, tolerance: f32, span: &BinSpan) {
-        for b in span.first..span.last {
-            let step = depth - self.group_depth[b];
-            if self.group_depth[b] == f32::INFINITY
-                || (step > 0.0 && step <= smaller(self.group_tolerance[b], tolerance))
+        let bins_of_span = span.first..span.last;
+        for (group_depth, group_tolerance) in self.group_depth[bins_of_span.clone()]
+            .iter_mut()
+            .zip(&mut self.group_tolerance[bins_of_span])
+        {
+            let step = depth - *group_depth;
+            if *group_depth == f32::INFINITY
+                || (step > 0.0 && step <= smaller(*group_tolerance, tolerance))
             {
-                self.group_depth[b] = depth;
-                self.group_tolerance[b] = tolerance;
+                *group_depth = depth;
+                *group_tolerance = tolerance;
             }
         }
     }
@@ -237,7 +245,7 @@ impl<const B: usize> PixelState<B> {
         for b in first..last {
             let mark = std::mem::take(&mut self.group_whole_bins[b]);
             per_mass += mark;
-            largest = largest.max(mark.abs());
+            largest = larger(largest, mark.abs());
             // Where every run has ended the sum is zero but for rounding, which must not leave
             // coverage in bins the group never covered (`spill_overflow` would fill them).
             if per_mass.abs() <= 1e-5 * largest {
@@ -304,7 +312,7 @@ impl<const B: usize> PixelState<B> {
             }
             // The bins the group does not touch keep their transmittance: what it hides is what
             // it shows.
-            let remaining = (self.remaining - visible).max(0.0);
+            let remaining = larger(self.remaining - visible, 0.0);
             let k = visible / self.group_weight;
             for c in 0..3 {
                 self.colour[c] += k * self.group_colour[c];
@@ -331,7 +339,7 @@ impl<const B: usize> PixelState<B> {
 
     /// The pixel's premultiplied colour, the share of the exposure that shows what lies behind,
     /// and the depth of its visible surface.
-    pub(super) fn finish(mut self, bins: &TimeBins<B>) -> ([f32; 3], f32, f32) {
+    pub(super) fn finish(&mut self, bins: &TimeBins<B>) -> ([f32; 3], f32, f32) {
         self.close_group(bins);
         (self.colour, self.remaining, self.front_depth)
     }
