@@ -10,8 +10,8 @@
 //!    the plain ratio T_full / T_lod).
 //!
 //! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS] [REPEATS] [SCENES]`, by default
-//! `320 7.3,1,0.3 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders.
-//! Given a folder `SCENES`, each scene is also written there (`armadillo-90px-0.3.toml`, say),
+//! `320 7.3,1,0.3 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders,
+//! full detail and simplified taking turns. Given a folder `SCENES`, each scene is also written there (`armadillo-90px-0.3.toml`, say),
 //! for `streak render --explain` or the `raster` bench. Reads the meshes from
 //! `../shared/data/meshes/`.
 
@@ -97,7 +97,7 @@ fn scene_text(case: &Case, speed: f64, width: u32, sigma: f64) -> String {
     )
 }
 
-/// A render timed: the image, the first plan's time (with any simplification), the median
+/// Renders timed: the last image, the first plan's time (with any simplification), the median
 /// plan's time over the repeats (with the simplification cached after the first), the median
 /// render's time, and the faces the first object was drawn with. Medians, because one render
 /// alone also times first touches of memory and whatever else this machine does at that moment.
@@ -109,28 +109,41 @@ struct Timed {
     faces: usize,
 }
 
-fn timed_render(scene: &Scene, method: &Method, lod: Lod, repeats: usize) -> streak::Result<Timed> {
-    let mut plans = Vec::with_capacity(repeats);
-    let mut renders = Vec::with_capacity(repeats);
-    let mut last = None;
+/// Each scene's render timed `repeats` times, the scenes taking turns, so that a change in what
+/// else the machine does weighs on all of them alike (timed one after the other, full detail
+/// and its level of detail were seen to drift apart by 20 % on this VM).
+fn timed_in_turn(renders: &[(&Scene, &Method, Lod)], repeats: usize) -> streak::Result<Vec<Timed>> {
+    let mut times = vec![(Vec::new(), Vec::new()); renders.len()];
+    let mut last = Vec::new();
     for _ in 0..repeats.max(1) {
-        let start = Instant::now();
-        let plan = Plan::with_lod(scene, method, lod)?;
-        let planned = start.elapsed().as_secs_f64();
-        let image = plan.render(None).image;
-        plans.push(planned);
-        renders.push(start.elapsed().as_secs_f64() - planned);
-        last = Some((image, plan.mesh_of(0).map_or(0, |m| m.triangles.len())));
+        last.clear();
+        for (&(scene, method, lod), (plans, renders)) in renders.iter().zip(&mut times) {
+            let start = Instant::now();
+            let plan = Plan::with_lod(scene, method, lod)?;
+            let planned = start.elapsed().as_secs_f64();
+            let image = plan.render(None).image;
+            plans.push(planned);
+            renders.push(start.elapsed().as_secs_f64() - planned);
+            last.push((image, plan.mesh_of(0).map_or(0, |m| m.triangles.len())));
+        }
     }
-    let (image, faces) = last.expect("at least one render");
-    let first_plan = plans[0];
-    Ok(Timed {
-        image,
-        first_plan,
-        plan: common::median_and_min(&mut plans).0,
-        render: common::median_and_min(&mut renders).0,
-        faces,
-    })
+    Ok(last
+        .into_iter()
+        .zip(times)
+        .map(|((image, faces), (mut plans, mut renders))| Timed {
+            image,
+            first_plan: plans[0],
+            plan: common::median_and_min(&mut plans).0,
+            render: common::median_and_min(&mut renders).0,
+            faces,
+        })
+        .collect())
+}
+
+/// One render timed alone.
+fn timed_render(scene: &Scene, method: &Method, lod: Lod) -> streak::Result<Timed> {
+    let mut timed = timed_in_turn(&[(scene, method, lod)], 1)?;
+    Ok(timed.remove(0))
 }
 
 fn flip(test: &Framebuffer, reference: &Framebuffer) -> f64 {
@@ -161,7 +174,7 @@ fn main() -> streak::Result<()> {
                 &scene_text(case, speed, width, sigmas[0]),
                 Path::new("bench.toml"),
             )?;
-            let full = timed_render(&scene, &Method::ANALYTIC, Lod::Off, repeats)?;
+            let full = timed_render(&scene, &Method::ANALYTIC, Lod::Off)?;
             let object = &scene.objects[0];
             let mesh = object.mesh().expect("a triangle object");
             let input = Mesh {
@@ -200,11 +213,10 @@ fn main() -> streak::Result<()> {
                     object.surfels().to_vec(),
                     object.motion.clone(),
                 );
-                let simplified = timed_render(&variant, &Method::ANALYTIC, Lod::Off, 1)?;
+                let simplified = timed_render(&variant, &Method::ANALYTIC, Lod::Off)?;
                 line += &format!(" {label} {:.4}", flip(&simplified.image, &full.image));
             }
             println!("{line}");
-            let blur_full = timed_render(&scene, &Method::BLUR, Lod::Off, repeats)?;
             for &sigma in &sigmas {
                 let text = scene_text(case, speed, width, sigma);
                 if !scenes.is_empty() {
@@ -212,9 +224,18 @@ fn main() -> streak::Result<()> {
                     let path = Path::new(&scenes).join(format!("{kind}-{speed}px-{sigma}.toml"));
                     std::fs::write(&path, &text).expect("SCENES is a writable folder");
                 }
-                let scene = Scene::parse(&text, Path::new("bench.toml"))?;
-                let lod = timed_render(&scene, &Method::ANALYTIC, Lod::Auto, repeats)?;
-                let blur = timed_render(&scene, &Method::BLUR, Lod::Auto, repeats)?;
+                let lod_scene = Scene::parse(&text, Path::new("bench.toml"))?;
+                let [full, lod, blur_full, blur] = <[Timed; 4]>::try_from(timed_in_turn(
+                    &[
+                        (&scene, &Method::ANALYTIC, Lod::Off),
+                        (&lod_scene, &Method::ANALYTIC, Lod::Auto),
+                        (&scene, &Method::BLUR, Lod::Off),
+                        (&lod_scene, &Method::BLUR, Lod::Auto),
+                    ],
+                    repeats,
+                )?)
+                .ok()
+                .expect("four renders timed");
                 println!(
                     "  σ₁ = {sigma}: {} faces, simplify+plan {:.3} s; analytic ꟻLIP {:.4}, speed-up {:.1}× without, {:.1}× with the simplification; blur ꟻLIP {:.4}, speed-up {:.1}× (blur {:.3} s, LOD {:.3} s + plan, cached, {:.3} s)",
                     lod.faces,
