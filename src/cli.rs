@@ -561,7 +561,10 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
         let line: Vec<String> = row
             .shots
             .iter()
-            .map(|s| format!("{} {} {:.2} s", s.method, s.knob, s.seconds))
+            .map(|s| {
+                let detail = if s.full_detail { " full detail" } else { "" };
+                format!("{} {}{detail} {:.2} s", s.method, s.knob, s.seconds)
+            })
             .collect();
         eprintln!("{}: {}", row.name, line.join(", "));
     }

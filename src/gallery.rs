@@ -1,19 +1,22 @@
 //! The gallery: every scene of a folder rendered with `blur`, `reference`, `static` and `hint` in
-//! a set of styles, and a page (`index.html`) that shows hint and blur side by side with each
-//! render's time and its error against the reference.
+//! a set of styles (and `analytic` where it has triangle meshes), and a page (`index.html`) that
+//! shows hint and blur side by side with each render's time and its error against the
+//! reference. Where the level of detail simplifies a moving mesh, `blur` and `analytic` are also
+//! drawn at full detail (`--lod off`), so the page shows what the simplification costs and saves.
 //!
 //! Times are plan + render of one run on this machine, also given as ratios to `static` of the
 //! same scene; errors are measured against the gallery's own reference (the accumulation buffer
-//! at `samples` frames; on the torus knot the study measures 256 frames within 2·10⁻⁵ RMSE of
-//! 1024). A hint is not meant to match the reference: its error says how far the illustration
-//! departs from the photograph.
+//! at `samples` frames, drawn at full detail; on the torus knot the study measures 256 frames
+//! within 2·10⁻⁵ RMSE of 1024). A hint is not meant to match the reference: its error says how
+//! far the illustration departs from the photograph.
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::io::image::write_png;
+use crate::lod::Lod;
 use crate::metrics::{compare, ImageError};
 use crate::plan::{ObjectMotion, Plan};
-use crate::render::{render, Method, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX};
+use crate::render::{Method, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX};
 use crate::scene::Scene;
 use crate::style::Style;
 use crate::surfels::Budget;
@@ -43,10 +46,13 @@ pub struct GalleryOptions {
 /// One rendered image.
 #[derive(Clone, Debug)]
 pub struct Shot {
-    /// `static`, `blur`, `reference` or `hint`.
+    /// `static`, `blur`, `reference`, `analytic` or `hint`.
     pub method: String,
     /// The setting: the style's name for hints, τ or N otherwise.
     pub knob: String,
+    /// Drawn with the level of detail off (`--lod off`), beside the default render of a scene
+    /// whose moving meshes the level of detail simplifies.
+    pub full_detail: bool,
     /// The PNG's file name, in the output folder.
     pub file: String,
     /// Plan + render, seconds.
@@ -120,18 +126,35 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
                 .filter(|s| own.as_ref().is_none_or(|o| o.name() != s.name()))
                 .cloned(),
         );
+        let blur_knob = format!("τ={DEFAULT_TOLERANCE_PX}px");
+        let analytic_knob = format!("τ={ANALYTIC_TOLERANCE_PX}px");
         let mut jobs = vec![
+            // The truth every other render is measured against, simplifications included.
             (
                 Method::Reference {
                     samples: options.samples,
                 },
                 format!("N={}", options.samples),
+                Lod::Off,
             ),
-            (Method::STATIC, "t=mid".to_string()),
-            (Method::BLUR, format!("τ={DEFAULT_TOLERANCE_PX}px")),
+            (Method::STATIC, "t=mid".to_string(), Lod::Auto),
+            (Method::BLUR, blur_knob.clone(), Lod::Auto),
         ];
-        if scene.objects.iter().any(|o| o.mesh().is_some()) {
-            jobs.push((Method::ANALYTIC, format!("τ={ANALYTIC_TOLERANCE_PX}px")));
+        let meshes = scene.objects.iter().any(|o| o.mesh().is_some());
+        if meshes {
+            jobs.push((Method::ANALYTIC, analytic_knob.clone(), Lod::Auto));
+        }
+        let plan = Plan::new(&scene, &Method::BLUR)?;
+        // What the mesh level of detail leaves out is shown by drawing it too.
+        let simplified = scene.objects.iter().enumerate().any(|(index, object)| {
+            match (plan.mesh_of(index), object.mesh()) {
+                (Some(drawn), Some(own)) => drawn.triangles.len() < own.triangles.len(),
+                _ => false,
+            }
+        });
+        if simplified {
+            jobs.push((Method::BLUR, blur_knob, Lod::Off));
+            jobs.push((Method::ANALYTIC, analytic_knob, Lod::Off));
         }
         jobs.extend(styles.iter().map(|style| {
             (
@@ -140,20 +163,23 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
                     tolerance_px: DEFAULT_TOLERANCE_PX,
                 },
                 style.name(),
+                Lod::Auto,
             )
         }));
-        let plan = Plan::new(&scene, &Method::BLUR)?;
         let mut reference: Option<Framebuffer> = None;
         let mut shots = Vec::new();
-        for (method, knob) in jobs {
+        for (method, knob, lod) in jobs {
+            let full_detail = lod == Lod::Off && !matches!(method, Method::Reference { .. });
             if let Some(bar) = progress {
-                bar.set_message(format!("{name} {} {knob}", method.name()));
+                let detail = if full_detail { " full detail" } else { "" };
+                bar.set_message(format!("{name} {} {knob}{detail}", method.name()));
             }
             let start = Instant::now();
-            let image = render(&scene, &method, None)?.image;
+            let image = Plan::with_lod(&scene, &method, lod)?.render(None).image;
             let seconds = start.elapsed().as_secs_f64();
             let file = match method {
                 Method::Hint { .. } => format!("{name}-hint-{knob}.png"),
+                _ if full_detail => format!("{name}-{}-full-detail.png", method.name()),
                 _ => format!("{name}-{}.png", method.name()),
             };
             write_png(&image, &options.out_dir.join(&file))?;
@@ -167,6 +193,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
             shots.push(Shot {
                 method: method.name().to_string(),
                 knob,
+                full_detail,
                 file,
                 seconds,
                 error,
@@ -212,6 +239,8 @@ fn escape(text: &str) -> String {
 fn figure(shot: &Shot, static_seconds: f64, class: &str) -> String {
     let title = if shot.method == "hint" {
         format!("hint · {}", shot.knob)
+    } else if shot.full_detail {
+        format!("{} {} · full detail", shot.method, shot.knob)
     } else {
         format!("{} {}", shot.method, shot.knob)
     };
@@ -248,7 +277,7 @@ fn index_html(rows: &[SceneShots], styles: &[Arc<Style>], samples: usize) -> Str
         html,
         "<p class=\"meta\">Each scene drawn as a motion hint (the object sharp at the flash, a styled trail) beside the \
          physically based blur (motion ellipses, τ = {DEFAULT_TOLERANCE_PX} px) and the reference (the shutter-weighted \
-         average of {samples} frames). Times are plan + render on this machine, and as ratios to a sharp \
+         average of {samples} frames, at full detail). Times are plan + render on this machine, and as ratios to a sharp \
          <code>static</code> render of the same scene. Errors are RMSE of linear colour and mean ꟻLIP against the \
          reference; a hint is an illustration, so its error measures how far it departs from the photograph.</p>"
     );
@@ -275,16 +304,27 @@ fn index_html(rows: &[SceneShots], styles: &[Arc<Style>], samples: usize) -> Str
             .find(|s| s.method == "hint" && Some(&s.knob) == row.own_style.as_ref())
             .or_else(|| row.shots.iter().find(|s| s.method == "hint"));
         html.push_str("<div class=\"pair\">\n");
-        for shot in first_hint.into_iter().chain(
-            row.shots
-                .iter()
-                .filter(|s| matches!(s.method.as_str(), "blur" | "analytic" | "reference")),
-        ) {
+        let physical = |s: &&Shot| matches!(s.method.as_str(), "blur" | "analytic" | "reference");
+        for shot in first_hint
+            .into_iter()
+            .chain(row.shots.iter().filter(physical).filter(|s| !s.full_detail))
+        {
             html.push_str(&figure(shot, static_seconds, "big"));
         }
-        html.push_str(
-            "</div>\n<h3>Every style, and the sharp instant</h3>\n<div class=\"styles\">\n",
-        );
+        html.push_str("</div>\n");
+        if row.shots.iter().any(|s| s.full_detail) {
+            html.push_str(
+                "<h3>The moving meshes simplified for their screen speed (the default), and at full detail</h3>\n\
+                 <div class=\"pair\">\n",
+            );
+            for method in ["blur", "analytic"] {
+                for shot in row.shots.iter().filter(|s| s.method == method) {
+                    html.push_str(&figure(shot, static_seconds, "big"));
+                }
+            }
+            html.push_str("</div>\n");
+        }
+        html.push_str("<h3>Every style, and the sharp instant</h3>\n<div class=\"styles\">\n");
         for shot in row
             .shots
             .iter()
@@ -322,6 +362,7 @@ mod tests {
         let shot = |method: &str, knob: &str, seconds: f64, error: Option<ImageError>| Shot {
             method: method.into(),
             knob: knob.into(),
+            full_detail: false,
             file: format!("s-{method}-{knob}.png"),
             seconds,
             error,
@@ -354,5 +395,55 @@ mod tests {
         // Times as seconds and ratios to static, errors to 4 digits.
         assert!(pair.contains("1.500 s · 3.0× static") && pair.contains("RMSE 0.0123"));
         assert!(pair.contains("50.000 s · 100.0× static<br>the reference"));
+        // A scene without full-detail shots has no level-of-detail row.
+        assert!(!html.contains("simplified for their screen speed"));
+    }
+
+    #[test]
+    fn full_detail_is_shown_beside_the_simplified_render_not_in_the_pair() {
+        let error = ImageError {
+            rmse: 0.01,
+            psnr_db: 40.0,
+            ssim: 0.99,
+            flip: 0.03,
+        };
+        let shot = |method: &str, seconds: f64, full_detail: bool| Shot {
+            method: method.into(),
+            knob: "τ=1px".into(),
+            full_detail,
+            file: format!("s-{method}-{full_detail}.png"),
+            seconds,
+            error: Some(error),
+        };
+        let row = SceneShots {
+            name: "armadillo".into(),
+            description: String::new(),
+            surfels: 1000,
+            size: (64, 48),
+            path_px: 90.0,
+            own_style: None,
+            shots: vec![
+                shot("static", 0.1, false),
+                shot("blur", 0.2, false),
+                shot("analytic", 0.3, false),
+                shot("blur", 2.0, true),
+                shot("analytic", 6.0, true),
+            ],
+        };
+        let html = index_html(&[row], &[], 64);
+        let pair = &html[html.find("class=\"pair\"").unwrap()
+            ..html.find("simplified for their screen speed").unwrap()];
+        assert!(pair.contains("blur τ=1px") && !pair.contains("full detail<"));
+        let lod = &html[html.find("simplified for their screen speed").unwrap()
+            ..html.find("class=\"styles\"").unwrap()];
+        // Blur simplified, blur full detail, then the same for analytic, each with its time.
+        let at = |needle: &str| {
+            lod.find(needle)
+                .unwrap_or_else(|| panic!("{needle} in {lod}"))
+        };
+        assert!(at("s-blur-false.png") < at("s-blur-true.png"));
+        assert!(at("s-blur-true.png") < at("s-analytic-false.png"));
+        assert!(at("s-analytic-false.png") < at("s-analytic-true.png"));
+        assert!(lod.contains("<b>blur τ=1px · full detail</b><br>2.000 s · 20.0× static"));
     }
 }

@@ -2,7 +2,8 @@
 //! converged reference of the same scene (docs/architecture.md, "Error against run time").
 //!
 //! The reference is the accumulation buffer at `reference_samples` frames (1024 by default),
-//! cached as linear EXR keyed by the scene text, image size and sample count. Each render is timed
+//! drawn at full detail (no level of detail), cached as linear EXR keyed by the scene text, image
+//! size and sample count. Each render is timed
 //! as the median of `repeats` runs of plan + render (scene loading and surfel sampling excluded,
 //! as they are shared by every method), after one untimed render. Times are only comparable
 //! within one run.
@@ -15,8 +16,8 @@ use crate::metrics::{compare, ImageError};
 use crate::plan::Plan;
 use crate::plot::StudyPoint;
 use crate::render::{
-    render, Method, Receivers, Render, Subframes, Visibility, ANALYTIC_TOLERANCE_PX,
-    DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
+    Method, Receivers, Render, Subframes, Visibility, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX,
+    MAX_SAMPLES,
 };
 use crate::scene::Scene;
 use crate::style::Style;
@@ -177,6 +178,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// The converged reference, from the cache when the same scene, size and count were done before.
+/// It is drawn at full detail (the level of detail off): it is the truth that what the level of
+/// detail leaves out is measured against.
 pub fn converged_reference(
     scene: &Scene,
     samples: usize,
@@ -193,6 +196,7 @@ pub fn converged_reference(
                 scene.camera.width,
                 scene.camera.height,
                 samples,
+                "full detail",
                 env!("CARGO_PKG_VERSION"),
             )
                 .hash(&mut hasher);
@@ -210,7 +214,9 @@ pub fn converged_reference(
             bar.inc(1);
         }
     };
-    let image = render(scene, &Method::Reference { samples }, Some(&tick))?.image;
+    let image = Plan::with_lod(scene, &Method::Reference { samples }, Lod::Off)?
+        .render(Some(&tick))
+        .image;
     if let Some(path) = &cached {
         write_exr(&image, path)?;
     }
