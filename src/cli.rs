@@ -552,8 +552,7 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
         size: args.image.width.zip(args.image.height),
         budget: args.image.budget()?,
     };
-    // Per scene: reference, static, blur, and a hint per style (the scene's own style may add one).
-    let per_scene = 3 + options.styles.len() as u64;
+    let per_scene = gallery::images_per_scene(&options) as u64;
     let progress = bar(options.scenes.len() as u64 * per_scene, "gallery");
     let rows = gallery::run(&options, Some(&progress))?;
     progress.finish_and_clear();

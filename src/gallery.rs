@@ -102,6 +102,14 @@ fn leading_comment(path: &Path) -> String {
         .join(" ")
 }
 
+/// The images every scene gets: reference, static, blur and a hint per style in
+/// `options.styles`. A scene may need more (its own style, `analytic`, full detail): `run` adds
+/// them to the progress bar's length as it finds them.
+#[must_use]
+pub fn images_per_scene(options: &GalleryOptions) -> usize {
+    3 + options.styles.len()
+}
+
 /// Render the gallery into `options.out_dir` and write its page; `progress` advances once per
 /// image.
 pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<Vec<SceneShots>> {
@@ -166,6 +174,9 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
                 Lod::Auto,
             )
         }));
+        if let Some(bar) = progress {
+            bar.inc_length(jobs.len().saturating_sub(images_per_scene(options)) as u64);
+        }
         let mut reference: Option<Framebuffer> = None;
         let mut shots = Vec::new();
         for (method, knob, lod) in jobs {
