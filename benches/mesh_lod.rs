@@ -11,9 +11,9 @@
 //!
 //! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS] [REPEATS] [SCENES]`, by default
 //! `320 7.3,1,0.3 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders,
-//! full detail and simplified taking turns. Given a folder `SCENES`, each scene is also written there (`armadillo-90px-0.3.toml`, say),
-//! for `streak render --explain` or the `raster` bench. Reads the meshes from
-//! `../shared/data/meshes/`.
+//! full detail and simplified taking turns. Given a folder `SCENES`, each scene is also written
+//! there (`armadillo-90px-0.3.toml`, say), for `streak render --explain` or the `raster` bench.
+//! Reads the meshes from `../shared/data/meshes/`.
 
 mod common;
 

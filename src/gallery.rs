@@ -137,19 +137,17 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
         let blur_knob = format!("τ={DEFAULT_TOLERANCE_PX}px");
         let analytic_knob = format!("τ={ANALYTIC_TOLERANCE_PX}px");
         let mut jobs = vec![
-            // The truth every other render is measured against, simplifications included.
             (
                 Method::Reference {
                     samples: options.samples,
                 },
                 format!("N={}", options.samples),
-                Lod::Off,
+                Lod::GROUND_TRUTH,
             ),
             (Method::STATIC, "t=mid".to_string(), Lod::Auto),
             (Method::BLUR, blur_knob.clone(), Lod::Auto),
         ];
-        let meshes = scene.objects.iter().any(|o| o.mesh().is_some());
-        if meshes {
+        if scene.objects.iter().any(|o| o.mesh().is_some()) {
             jobs.push((Method::ANALYTIC, analytic_knob.clone(), Lod::Auto));
         }
         let plan = Plan::new(&scene, &Method::BLUR)?;

@@ -40,6 +40,11 @@ pub enum Lod {
 }
 
 impl Lod {
+    /// The level of detail of a reference that other renders' errors are measured against (the
+    /// gallery's, the study's converged one): none, so that what the level of detail leaves out
+    /// counts as error.
+    pub const GROUND_TRUTH: Lod = Lod::Off;
+
     /// The cells an object drawn blurred is merged in, if any, for `kernel3d` (`kernels`) or
     /// another method.
     #[must_use]

@@ -3,10 +3,9 @@
 //!
 //! The reference is the accumulation buffer at `reference_samples` frames (1024 by default),
 //! drawn at full detail (no level of detail), cached as linear EXR keyed by the scene text, image
-//! size and sample count. Each render is timed
-//! as the median of `repeats` runs of plan + render (scene loading and surfel sampling excluded,
-//! as they are shared by every method), after one untimed render. Times are only comparable
-//! within one run.
+//! size and sample count. Each render is timed as the median of `repeats` runs of plan + render
+//! (scene loading and surfel sampling excluded, as they are shared by every method), after one
+//! untimed render. Times are only comparable within one run.
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
@@ -178,8 +177,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// The converged reference, from the cache when the same scene, size and count were done before.
-/// It is drawn at full detail (the level of detail off): it is the truth that what the level of
-/// detail leaves out is measured against.
+/// It is drawn at [`Lod::GROUND_TRUTH`], full detail.
 pub fn converged_reference(
     scene: &Scene,
     samples: usize,
@@ -214,7 +212,7 @@ pub fn converged_reference(
             bar.inc(1);
         }
     };
-    let image = Plan::with_lod(scene, &Method::Reference { samples }, Lod::Off)?
+    let image = Plan::with_lod(scene, &Method::Reference { samples }, Lod::GROUND_TRUTH)?
         .render(Some(&tick))
         .image;
     if let Some(path) = &cached {

@@ -109,6 +109,14 @@ struct BinSpan {
     u1: f32,
 }
 
+impl BinSpan {
+    /// The bins, [first, last).
+    #[inline]
+    fn bins(&self) -> std::ops::Range<usize> {
+        self.first..self.last
+    }
+}
+
 impl<const B: usize> PixelState<B> {
     pub(super) const EMPTY: Self = PixelState {
         colour: [0.0; 3],
@@ -155,10 +163,9 @@ impl<const B: usize> PixelState<B> {
         } else {
             bin_span(f.time_window_at(x, y), bins)
         };
-        let bins_of_span = span.first..span.last;
-        let same_surface = self.group_depth[bins_of_span.clone()]
+        let same_surface = self.group_depth[span.bins()]
             .iter()
-            .zip(&self.group_tolerance[bins_of_span])
+            .zip(&self.group_tolerance[span.bins()])
             .all(|(&group_depth, &group_tolerance)| {
                 depth - group_depth <= larger(group_tolerance, f.depth_tolerance)
             });
@@ -191,10 +198,9 @@ impl<const B: usize> PixelState<B> {
     /// cover yet, and where it lies behind by less than the smaller tolerance.
     #[inline]
     fn follow(&mut self, depth: f32, tolerance: f32, span: &BinSpan) {
-        let bins_of_span = span.first..span.last;
-        for (group_depth, group_tolerance) in self.group_depth[bins_of_span.clone()]
+        for (group_depth, group_tolerance) in self.group_depth[span.bins()]
             .iter_mut()
-            .zip(&mut self.group_tolerance[bins_of_span])
+            .zip(&mut self.group_tolerance[span.bins()])
         {
             let step = depth - *group_depth;
             if *group_depth == f32::INFINITY

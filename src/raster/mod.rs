@@ -559,7 +559,8 @@ fn tile_pass<const B: usize, T: Send>(
         footprints[index as usize].for_each_tile(&grid, visit);
     });
     // A tile no footprint reaches is clear, without setting up and finishing its pixel states.
-    let clear = { PixelState::<B>::EMPTY }.finish(bins);
+    let mut empty = PixelState::<B>::EMPTY;
+    let clear = empty.finish(bins);
     // One task per band: rayon's adaptive split would otherwise leave a thread idle when the
     // work gathers in a few bands.
     bands
