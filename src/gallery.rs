@@ -152,12 +152,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
         }
         let plan = Plan::new(&scene, &Method::BLUR)?;
         // What the mesh level of detail leaves out is shown by drawing it too.
-        let simplified = scene.objects.iter().enumerate().any(|(index, object)| {
-            match (plan.mesh_of(index), object.mesh()) {
-                (Some(drawn), Some(own)) => drawn.triangles.len() < own.triangles.len(),
-                _ => false,
-            }
-        });
+        let simplified = plan.simplifies_a_mesh();
         if simplified {
             jobs.push((Method::BLUR, blur_knob, Lod::Off));
             jobs.push((Method::ANALYTIC, analytic_knob, Lod::Off));

@@ -296,6 +296,15 @@ impl<'a> Plan<'a> {
         (0..self.objects.len()).any(|i| self.draws_triangles(i))
     }
 
+    /// Whether the level of detail simplifies any object's mesh, so that full detail
+    /// ([`Lod::Off`]) would draw something else.
+    #[must_use]
+    pub fn simplifies_a_mesh(&self) -> bool {
+        self.objects
+            .iter()
+            .any(|o| matches!(o.mesh_lod, MeshLod::Simplified { .. }))
+    }
+
     /// Triangle items one image draws: each triangle once per sub-segment (`analytic`) or once
     /// (an instant).
     fn triangle_items(&self) -> usize {

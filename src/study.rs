@@ -308,10 +308,34 @@ pub fn run(
             }));
         }
     }
-    let mut n = 1;
-    while n <= options.max_samples {
-        setups.push(Setting::auto(Method::Reference { samples: n }));
-        n *= 2;
+    // Where the level of detail simplifies a mesh, the simplified renders level off at the
+    // simplification's error against the full-detail converged reference; `analytic` and the
+    // reference are then also studied at full detail, and compared with each other there.
+    let triangles_full_detail = scene.objects.iter().any(|o| o.mesh().is_some())
+        && Plan::new(scene, &Method::ANALYTIC)?.simplifies_a_mesh();
+    if triangles_full_detail {
+        setups.extend(ANALYTIC_TOLERANCES_PX.iter().map(|&tolerance_px| Setting {
+            method: Method::Analytic {
+                tolerance_px,
+                receivers: Receivers::Sampled,
+            },
+            lod: Lod::Off,
+        }));
+    }
+    let lods: &[Lod] = if triangles_full_detail {
+        &[Lod::Auto, Lod::Off]
+    } else {
+        &[Lod::Auto]
+    };
+    for &lod in lods {
+        let mut n = 1;
+        while n <= options.max_samples {
+            setups.push(Setting {
+                method: Method::Reference { samples: n },
+                lod,
+            });
+            n *= 2;
+        }
     }
 
     if let Some(bar) = progress {
@@ -349,17 +373,30 @@ pub fn run(
     Ok(points)
 }
 
-/// The first (smallest-N) reference point at least as accurate as `error` by `metric`, if any
-/// was studied.
+/// The first (smallest-N) point of the reference series `reference` at least as accurate as
+/// `error` by `metric`, if any was studied.
 #[must_use]
 pub fn samples_to_match<'a>(
     points: &'a [StudyPoint],
+    reference: &str,
     metric: fn(&ImageError) -> f64,
     error: &ImageError,
 ) -> Option<&'a StudyPoint> {
     points
         .iter()
-        .find(|p| p.method == "reference" && metric(&p.error) <= metric(error))
+        .find(|p| p.method == reference && metric(&p.error) <= metric(error))
+}
+
+/// The reference series a point of series `method` is compared with: at full detail where the
+/// study drew the reference at full detail too, so that neither side carries the level of
+/// detail's error.
+fn reference_series(points: &[StudyPoint], method: &str) -> &'static str {
+    const FULL: &str = "reference full detail";
+    if method.ends_with(" full detail") && points.iter().any(|p| p.method == FULL) {
+        FULL
+    } else {
+        "reference"
+    }
 }
 
 /// For each of `method`'s points, the reference sample count that first reaches its error, in
@@ -369,22 +406,22 @@ pub fn samples_to_match<'a>(
 #[must_use]
 pub fn equal_error(points: &[StudyPoint], method: &str) -> String {
     let mut out = String::new();
-    let matched =
-        |p: &StudyPoint, name: &str, metric: fn(&ImageError) -> f64| match samples_to_match(
-            points, metric, &p.error,
-        ) {
+    let matched = |p: &StudyPoint, name: &str, metric: fn(&ImageError) -> f64| {
+        let reference = reference_series(points, &p.method);
+        match samples_to_match(points, reference, metric, &p.error) {
             Some(r) => format!(
-                "{name} {:.5} matches the reference at {} ({:.3} s, {:.2}× its time)",
+                "{name} {:.5} matches the {reference} at {} ({:.3} s, {:.2}× its time)",
                 metric(&p.error),
                 r.knob,
                 r.seconds,
                 p.seconds / r.seconds
             ),
             None => format!(
-                "{name} {:.5}: no studied reference sample count reaches it",
+                "{name} {:.5}: no studied {reference} sample count reaches it",
                 metric(&p.error)
             ),
-        };
+        }
+    };
     for p in points.iter().filter(|p| p.method.starts_with(method)) {
         out.push_str(&format!(
             "- {} {} ({:.3} s): {}; {}\n",
@@ -420,4 +457,47 @@ pub fn table(points: &[StudyPoint]) -> String {
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(method: &str, knob: &str, seconds: f64, rmse: f64) -> StudyPoint {
+        StudyPoint {
+            method: method.to_string(),
+            knob: knob.to_string(),
+            seconds,
+            error: ImageError {
+                rmse,
+                psnr_db: -20.0 * rmse.log10(),
+                ssim: 1.0,
+                flip: rmse,
+            },
+        }
+    }
+
+    #[test]
+    fn full_detail_is_matched_against_the_full_detail_reference() {
+        // The simplified reference levels off at 0.001; at full detail it goes on to 0.0002.
+        let points = [
+            point("reference", "N=16", 1.0, 0.002),
+            point("reference", "N=64", 4.0, 0.001),
+            point("reference full detail", "N=16 lod=off", 2.0, 0.002),
+            point("reference full detail", "N=64 lod=off", 8.0, 0.0002),
+            point("analytic", "τ=0.3px", 0.5, 0.0011),
+            point("analytic full detail", "τ=0.3px lod=off", 0.6, 0.0003),
+        ];
+        let lines = equal_error(&points, "analytic");
+        let lines: Vec<&str> = lines.lines().collect();
+        assert_eq!(lines.len(), 2);
+        assert!(lines[0].contains("matches the reference at N=64 (4.000 s, 0.12×"));
+        assert!(
+            lines[1].contains("matches the reference full detail at N=64 lod=off (8.000 s, 0.07×")
+        );
+        // Without a full-detail reference series, full detail is matched against the reference.
+        let simplified_reference = [points[0].clone(), points[1].clone(), points[5].clone()];
+        let line = equal_error(&simplified_reference, "analytic");
+        assert!(line.contains("RMSE 0.00030: no studied reference sample count reaches it"));
+    }
 }
