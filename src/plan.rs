@@ -296,6 +296,16 @@ impl<'a> Plan<'a> {
         (0..self.objects.len()).any(|i| self.draws_triangles(i))
     }
 
+    /// Where object `index` is drawn as triangles in a scene with shadows and cannot shadow
+    /// itself ([`TriangleMesh::shadows_itself`]), what its shadow lookups leave out.
+    fn cannot_shadow_itself(&self, index: usize) -> Option<String> {
+        let mesh = self.mesh_of(index)?;
+        (self.draws_triangles(index) && self.scene.lighting.any_shadows() && !mesh.shadows_itself)
+            .then(|| {
+                "shadows: planar, or closed and convex, so it cannot shadow itself: its own triangles are left out of its shadow lookups".to_string()
+            })
+    }
+
     /// Whether the level of detail simplifies any object's mesh, so that full detail
     /// ([`Lod::Off`]) would draw something else.
     #[must_use]
@@ -397,7 +407,7 @@ impl<'a> Plan<'a> {
             out.push('\n');
         };
         line(format!("plan (tolerance {} px):", self.tolerance_px));
-        for o in &self.objects {
+        for (index, o) in self.objects.iter().enumerate() {
             match &o.motion {
                 ObjectMotion::Still => {
                     line(format!(
@@ -407,6 +417,9 @@ impl<'a> Plan<'a> {
                     line(format!("    {}", o.lod.outcome.explain()));
                     if let Some(mesh) = o.mesh_lod.explain(o.faces, &self.scene.mesh_detail) {
                         line(format!("    {mesh}"));
+                    }
+                    if let Some(why) = self.cannot_shadow_itself(index) {
+                        line(format!("    {why}"));
                     }
                 }
                 ObjectMotion::Moving {
@@ -426,6 +439,9 @@ impl<'a> Plan<'a> {
                     line(format!("    {}", o.lod.outcome.explain()));
                     if let Some(mesh) = o.mesh_lod.explain(o.faces, &self.scene.mesh_detail) {
                         line(format!("    {mesh}"));
+                    }
+                    if let Some(why) = self.cannot_shadow_itself(index) {
+                        line(format!("    {why}"));
                     }
                     match capped {
                         Some(SegmentCap::PerInterval) => line(format!(

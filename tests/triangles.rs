@@ -515,3 +515,81 @@ fn only_receivers_that_sweep_texels_and_may_be_shadowed_are_point_sampled() {
     let rising = rising_floor();
     assert!(count(&rising) > 0);
 }
+
+/// A cube of side 1 centred on the origin, two outward-wound triangles per side.
+fn cube() -> Mesh {
+    let corner = |k: u32| {
+        DVec3::new(
+            f64::from(k & 1) - 0.5,
+            f64::from((k >> 1) & 1) - 0.5,
+            f64::from((k >> 2) & 1) - 0.5,
+        )
+    };
+    let sides: [[u32; 4]; 6] = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    Mesh {
+        positions: (0..8).map(corner).collect(),
+        triangles: sides
+            .iter()
+            .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
+            .collect(),
+    }
+}
+
+#[test]
+fn a_mesh_that_can_shadow_itself_does_and_a_convex_one_is_lit_throughout() {
+    // Light from (1, 0, 1), seen straight down. A 2 × 2 floor at z = 0 with a wall of height 1
+    // standing at x = 0.5, as one mesh: the floor's centre point (0, 0) is shadowed by its own
+    // wall (the ray to the light meets x = 0.5 at z = 0.5), so the centre pixel is ambient only.
+    let lit_value = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
+    let mut folded = square(2.0);
+    folded.positions.extend([
+        DVec3::new(0.5, -1.0, 0.0),
+        DVec3::new(0.5, 1.0, 0.0),
+        DVec3::new(0.5, 1.0, 1.0),
+        DVec3::new(0.5, -1.0, 1.0),
+    ]);
+    folded.triangles.extend([[4, 5, 6], [4, 6, 7]]);
+    let with = |mesh: &Mesh, keys: &[(f64, Pose)]| {
+        lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
+            .with_object(object("mesh", mesh, [1.0; 3], keys))
+    };
+    let still = [(0.0, at(0.0, 0.0, 0.0))];
+    let p = pixel(
+        &render(&with(&folded, &still), &Method::ANALYTIC).image,
+        16,
+        16,
+    );
+    assert!((f64::from(p[0]) - 0.2).abs() < 1e-3, "{p:?}");
+    // Without its wall the floor is planar, and lit.
+    let p = pixel(
+        &render(&with(&square(2.0), &still), &Method::ANALYTIC).image,
+        16,
+        16,
+    );
+    assert!((f64::from(p[0]) - lit_value).abs() < 1e-3, "{p:?}");
+    // A cube sliding and turning about the view axis: the middle of its top face, which faces
+    // the camera all along, is lit all along, and none of its pieces needs point sampling.
+    let turned = |x: f64, degrees: f64| Pose {
+        rotation: DQuat::from_rotation_z(degrees.to_radians()),
+        ..at(x, 0.0, 0.0)
+    };
+    let drawn = TriangleMesh::new(&cube(), DVec3::ZERO, Colouring::Own).unwrap();
+    assert!(drawn.closed && !drawn.shadows_itself);
+    let out = render(
+        &with(
+            &cube(),
+            &[(0.0, turned(-0.1, 0.0)), (1.0, turned(0.1, 40.0))],
+        ),
+        &Method::ANALYTIC,
+    );
+    let p = pixel(&out.image, 16, 16);
+    assert!((f64::from(p[0]) - lit_value).abs() < 1e-3, "{p:?}");
+    assert_eq!(out.stats.triangles.point_sampled, 0);
+}

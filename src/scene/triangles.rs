@@ -27,7 +27,23 @@ pub struct TriangleMesh {
     /// Whether every edge is shared by exactly two triangles wound consistently: a closed
     /// surface, whose triangles facing away from the eye are hidden and need not be drawn.
     pub closed: bool,
+    /// Whether any part of it can shadow another: not when all its triangles lie in one plane
+    /// (within [`PLANAR_TOLERANCE`] of its extent), nor when it is closed and convex, wound
+    /// outward, so that every point the eye sees on it lies on its outside (docs/math.md,
+    /// "Shadows a mesh cannot cast on itself"). Shadow lookups then leave the whole mesh out for
+    /// its own points.
+    pub shadows_itself: bool,
 }
+
+/// How far in front of a triangle's plane, as a share of the mesh's bounding box diagonal, a
+/// vertex of a mesh that cannot shadow itself may lie ([`TriangleMesh::shadows_itself`]):
+/// rounding in the file's coordinates, not shape. A bump this small could only shadow light
+/// grazing the plane within about this many radians, whose Lambert term is no larger.
+pub const PLANAR_TOLERANCE: f64 = 1e-6;
+
+/// Most triangles of a closed mesh tested for convexity (each against every vertex); a larger
+/// one is taken to shadow itself.
+pub const MAX_CONVEX_TEST_TRIANGLES: usize = 4096;
 
 impl TriangleMesh {
     /// The triangles of `mesh` with a positive area, moved by `-offset`, coloured as
@@ -74,12 +90,15 @@ impl TriangleMesh {
             })
             .collect();
         let closed = is_closed(&triangles);
+        let shadows_itself = !(is_planar(&positions, &triangles, &face_normals)
+            || closed && is_convex(&positions, &triangles, &face_normals));
         Ok(TriangleMesh {
             positions,
             triangles,
             normals,
             colours,
             closed,
+            shadows_itself,
         })
     }
 
@@ -123,6 +142,51 @@ fn is_closed(triangles: &[[u32; 3]]) -> bool {
         && edges
             .iter()
             .all(|&(a, b)| edges.binary_search(&(b, a)).is_ok())
+}
+
+/// Every corner of `triangles`, and [`PLANAR_TOLERANCE`] as a distance for them.
+fn corners_and_tolerance<'a>(
+    positions: &'a [DVec3],
+    triangles: &'a [[u32; 3]],
+) -> (impl Iterator<Item = DVec3> + Clone + 'a, f64) {
+    let corners = triangles.iter().flatten().map(|&v| positions[v as usize]);
+    let (lo, hi) = corners
+        .clone()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        });
+    (corners, PLANAR_TOLERANCE * (hi - lo).length())
+}
+
+/// Whether every corner of `triangles` lies within [`PLANAR_TOLERANCE`] of the plane of the
+/// largest (`face_normals` are twice the areas along the normals).
+fn is_planar(positions: &[DVec3], triangles: &[[u32; 3]], face_normals: &[DVec3]) -> bool {
+    let Some((largest, normal)) = triangles
+        .iter()
+        .zip(face_normals)
+        .max_by(|a, b| a.1.length_squared().total_cmp(&b.1.length_squared()))
+    else {
+        return false;
+    };
+    let (normal, origin) = (normal.normalize(), positions[largest[0] as usize]);
+    let (mut corners, tolerance) = corners_and_tolerance(positions, triangles);
+    corners.all(|p| (p - origin).dot(normal).abs() <= tolerance)
+}
+
+/// Whether no corner of `triangles` lies more than [`PLANAR_TOLERANCE`] in front of any
+/// triangle's plane, front as the winding (`face_normals`) says: a closed mesh passing is convex
+/// and wound outward. Meshes of more than [`MAX_CONVEX_TEST_TRIANGLES`] are not tested.
+fn is_convex(positions: &[DVec3], triangles: &[[u32; 3]], face_normals: &[DVec3]) -> bool {
+    if triangles.len() > MAX_CONVEX_TEST_TRIANGLES {
+        return false;
+    }
+    let (corners, tolerance) = corners_and_tolerance(positions, triangles);
+    triangles.iter().zip(face_normals).all(|(t, n)| {
+        let (normal, origin) = (n.normalize(), positions[t[0] as usize]);
+        corners
+            .clone()
+            .all(|p| (p - origin).dot(normal) <= tolerance)
+    })
 }
 
 /// The faces around each of `vertices` vertices, as a compressed list: vertex v's are
@@ -182,6 +246,45 @@ mod tests {
 
     fn cube() -> Mesh {
         cuboid(DVec3::ONE)
+    }
+
+    #[test]
+    fn a_tilted_grid_and_a_cube_cannot_shadow_themselves_a_bent_grid_or_an_inverted_cube_can() {
+        // A 4 × 4 grid of squares in a tilted plane, its coordinates in f32 as a file has them.
+        let (u, v) = (DVec3::new(1.0, 0.3, -0.2), DVec3::new(0.1, 0.7, 0.9));
+        let mut grid = Mesh {
+            positions: (0..25)
+                .map(|i| {
+                    (u * f64::from(i % 5) + v * f64::from(i / 5))
+                        .as_vec3()
+                        .as_dvec3()
+                })
+                .collect(),
+            triangles: (0..16u32)
+                .flat_map(|q| {
+                    let c = q % 4 + 5 * (q / 4);
+                    [[c, c + 1, c + 6], [c, c + 6, c + 5]]
+                })
+                .collect(),
+        };
+        let shadows_itself = |mesh: &Mesh| {
+            TriangleMesh::new(mesh, DVec3::ZERO, Colouring::Own)
+                .unwrap()
+                .shadows_itself
+        };
+        assert!(!shadows_itself(&grid));
+        assert!(!shadows_itself(&cube()));
+        // Wound inward, the same cube shows its inside, where one wall shadows another.
+        let mut inverted = cube();
+        inverted.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+        assert!(shadows_itself(&inverted));
+        // Not closed, a convex surface may be seen and lit from its inside.
+        let mut open = cube();
+        open.triangles.pop();
+        assert!(shadows_itself(&open));
+        // One corner lifted by a thousandth of the grid's size off its plane.
+        grid.positions[12] += u.cross(v).normalize() * 0.005;
+        assert!(shadows_itself(&grid));
     }
 
     #[test]

@@ -708,7 +708,7 @@ impl<'a> Prepared<'a> {
         cuts.extend(span);
         if self.scene.lighting.is_lit() {
             let item = &self.items[run[0].item as usize];
-            let own = (item.object, item.triangle);
+            let own = self.shadow_id(item);
             let mut maps = self.shadows.iter();
             for source in &self.sources {
                 let mut away = true;
@@ -795,7 +795,7 @@ impl<'a> Prepared<'a> {
             return self.shade(item, &triangle, d, 0.0, segment.time[0]);
         }
         let span = piece.t;
-        let own = (item.object, item.triangle);
+        let own = self.shadow_id(item);
         // The receiver between the piece's ends: its point and normal interpolated linearly in
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
         // already turns linearly; the point departs from its chord by the perspective of a plane
@@ -1003,13 +1003,24 @@ impl<'a> Prepared<'a> {
             return albedo;
         }
         let (normal, p) = self.surface(item, triangle, d, s);
-        let own = (item.object, item.triangle);
+        let own = self.shadow_id(item);
         let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
         for (v, map) in visibility.iter_mut().zip(&self.shadows) {
             *v = map.visibility(p, normal, t, own);
         }
         let irradiance = self.irradiance(normal, p, &visibility);
         albedo.map(|c| c * irradiance)
+    }
+
+    /// What `item`'s pieces are known by in shadow maps, and what its receivers leave out of
+    /// them: its triangle (Palmér's polygon IDs), or the whole object, as [`WHOLE_OBJECT`],
+    /// where the object cannot shadow itself ([`TriangleMesh::shadows_itself`]).
+    fn shadow_id(&self, item: &Item) -> (u32, u32) {
+        if !self.objects[item.object as usize].1.shadows_itself {
+            (item.object, WHOLE_OBJECT)
+        } else {
+            (item.object, item.triangle)
+        }
     }
 
     /// The corner colours interpolated perspective-correctly where the ray `d` meets `item` at
@@ -1097,7 +1108,7 @@ impl<'a> Prepared<'a> {
                             let item = &self.items[piece.item as usize];
                             Occluder {
                                 piece,
-                                id: (item.object, item.triangle),
+                                id: self.shadow_id(item),
                             }
                         })
                         .collect();
@@ -1111,6 +1122,10 @@ impl<'a> Prepared<'a> {
         }
     }
 }
+
+/// The triangle index in every shadow-map id of an object that cannot shadow itself
+/// ([`Prepared::shadow_id`]).
+const WHOLE_OBJECT: u32 = u32::MAX;
 
 /// Slack around a moving triangle's screen hull, px: samples this near it are still tested
 /// exactly, so that rounding in the projection never drops one the edge functions cover.

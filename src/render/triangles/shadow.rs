@@ -4,10 +4,11 @@
 //! triangles and resolve as the image), or the nearest occluder at an instant.
 //!
 //! A receiver point is lit at time t when the texel's occluder at t is its own triangle (Palmér's
-//! polygon IDs) or lies no nearer than the receiver's depth less a bias of
-//! [`BIAS_TEXELS`] texels' width. Lookups are bilinear over four texels (percentage-closer
-//! filtering). A static receiver's lit times are exact: within a texel each occluder piece's depth
-//! is linear in time, so the times where it passes the receiver's depth are roots of a line;
+//! polygon IDs; its whole mesh where the mesh cannot shadow itself) or lies no nearer than the
+//! receiver's depth less a bias of [`BIAS_TEXELS`] texels' width. Lookups are bilinear over four
+//! texels (percentage-closer filtering). A static receiver's lit times are exact: within a texel
+//! each occluder piece's depth is linear in time, so the times where it passes the receiver's
+//! depth are roots of a line;
 //! [`ShadowMap::breakpoints`] gives them, and visibility is constant between them. A receiver
 //! that sweeps texels is point-sampled at max(2|pₑ − pₛ|, 5) times (Palmér §4.1), or with
 //! `Receivers::Traced` has its path cut where it crosses the texel grid and each cut found as a
@@ -53,7 +54,8 @@ pub struct Receiver {
     pub normal: DVec3,
     /// The times it moves between.
     pub span: [f64; 2],
-    /// Its triangle (object and triangle index), which does not shadow it.
+    /// What of its own does not shadow it: its triangle (object and triangle index), or its whole
+    /// object where that cannot shadow itself (the triangle index then `u32::MAX`).
     pub own: (u32, u32),
 }
 
