@@ -310,9 +310,16 @@ impl<'a> Plan<'a> {
     /// ([`Lod::Off`]) would draw something else.
     #[must_use]
     pub fn simplifies_a_mesh(&self) -> bool {
-        self.objects
+        self.scene
+            .objects
             .iter()
-            .any(|o| matches!(o.mesh_lod, MeshLod::Simplified { .. }))
+            .enumerate()
+            .any(
+                |(index, object)| match (self.mesh_of(index), object.mesh()) {
+                    (Some(drawn), Some(own)) => drawn.triangles.len() < own.triangles.len(),
+                    _ => false,
+                },
+            )
     }
 
     /// Triangle items one image draws: each triangle once per sub-segment (`analytic`) or once

@@ -466,6 +466,18 @@ fn the_plan_simplifies_moving_meshes_by_their_speed_and_leaves_still_ones_alone(
         explain.contains(&format!("{full} faces → {simplified}")),
         "{explain}"
     );
+    let simplifies = |scene: &Scene, lod: Lod| {
+        Plan::with_lod(scene, &Method::ANALYTIC, lod)
+            .unwrap()
+            .simplifies_a_mesh()
+    };
+    assert!(simplifies(&fast, Lod::Auto));
+    assert!(!simplifies(&fast, Lod::Off));
+    assert!(!simplifies(&moving_sphere(0.0), Lod::Auto));
+    // Moving too slowly for any collapse: simplified to every face it had, so nothing differs.
+    let crawling = moving_sphere(0.01);
+    assert_eq!(faces(&crawling, &Method::ANALYTIC, Lod::Auto).0, full);
+    assert!(!simplifies(&crawling, Lod::Auto));
     // Slower, less simplified.
     let (slower, _) = faces(&moving_sphere(1.2), &Method::ANALYTIC, Lod::Auto);
     assert!(
