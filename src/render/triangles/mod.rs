@@ -47,13 +47,11 @@ const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
     (0.774_596_669_241_483_4, 5.0 / 9.0),
 ];
 
-/// Cut `span` where a surface turns towards or away from a light: N·L, given by `facing` at a
-/// time, is quadratic in time (Palmér eq. 2.5) and taken through its values at the span's ends
-/// and middle; its roots inside the span are appended to `cuts`. Returns whether the surface
-/// faces away all along.
-fn cut_where_turning(facing: impl Fn(f64) -> f64, span: [f64; 2], cuts: &mut Vec<f64>) -> bool {
-    let mid = 0.5 * (span[0] + span[1]);
-    let [f0, fm, f1] = [facing(span[0]), facing(mid), facing(span[1])];
+/// Cut `span` where a surface turns towards or away from a light: N·L is quadratic in time
+/// (Palmér eq. 2.5) and taken through its values `[f0, fm, f1]` at the span's start, middle and
+/// end; its roots inside the span are appended to `cuts`. Returns whether the surface faces away
+/// all along.
+fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>) -> bool {
     // The quadratic through the three values, in u = (t − t0)/(t1 − t0).
     let (a, b, c) = (
         2.0 * f0 - 4.0 * fm + 2.0 * f1,
@@ -711,13 +709,15 @@ impl<'a> Prepared<'a> {
             let own = self.shadow_id(item);
             let mut maps = self.shadows.iter();
             for source in &self.sources {
+                // N·L at each piece's ends (shared with its neighbours) and middle.
+                let facing = |end: &SurfacePoint| end.normal.dot(source.towards(end.point));
                 let mut away = true;
+                let mut start = facing(&ends[0]);
                 for i in 0..run.len() {
-                    let facing = |t: f64| {
-                        let end = surface_at(t);
-                        end.normal.dot(source.towards(end.point))
-                    };
-                    away &= cut_where_turning(facing, [time(i), time(i + 1)], cuts);
+                    let end = facing(&ends[i + 1]);
+                    let middle = facing(&ends[i].lerp(&ends[i + 1], 0.5));
+                    away &= cut_where_turning([start, middle, end], [time(i), time(i + 1)], cuts);
+                    start = end;
                 }
                 if !source.shadows() {
                     continue;
@@ -800,7 +800,8 @@ impl<'a> Prepared<'a> {
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
-        let start = self.surface(item, &triangle, d, fraction(span[0]));
+        let first = self.surface_point(item, &triangle, d, fraction(span[0]));
+        let start = (first.normal, first.point);
         let ends = if segment.still {
             [start; 2]
         } else {
@@ -839,7 +840,9 @@ impl<'a> Prepared<'a> {
                 let away = if segment.still {
                     facing(span[0]) <= 0.0
                 } else {
-                    cut_where_turning(facing, span, cuts)
+                    let middle = 0.5 * (span[0] + span[1]);
+                    let values = [facing(span[0]), facing(middle), facing(span[1])];
+                    cut_where_turning(values, span, cuts)
                 };
                 if source.shadows() {
                     if let Some((map, lit)) = maps.next() {
@@ -890,7 +893,7 @@ impl<'a> Prepared<'a> {
             // Nothing but the shadows changes: shade once, weigh each cut piece's light by its
             // shutter mass.
             let (normal, p) = ends[0];
-            let albedo = self.albedo(item, &triangle, d, 0.0);
+            let albedo = first.albedo;
             let (mut sum, mut mass) = (0.0, 0.0);
             for pair in cuts.windows(2) {
                 let m = self.scene.shutter.mass(pair[0], pair[1]);
