@@ -516,32 +516,6 @@ fn only_receivers_that_sweep_texels_and_may_be_shadowed_are_point_sampled() {
     assert!(count(&rising) > 0);
 }
 
-/// A cube of side 1 centred on the origin, two outward-wound triangles per side.
-fn cube() -> Mesh {
-    let corner = |k: u32| {
-        DVec3::new(
-            f64::from(k & 1) - 0.5,
-            f64::from((k >> 1) & 1) - 0.5,
-            f64::from((k >> 2) & 1) - 0.5,
-        )
-    };
-    let sides: [[u32; 4]; 6] = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    Mesh {
-        positions: (0..8).map(corner).collect(),
-        triangles: sides
-            .iter()
-            .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
-            .collect(),
-    }
-}
-
 #[test]
 fn a_mesh_that_can_shadow_itself_does_and_a_convex_one_is_lit_throughout() {
     // Light from (1, 0, 1), seen straight down. A 2 × 2 floor at z = 0 with a wall of height 1
@@ -580,11 +554,11 @@ fn a_mesh_that_can_shadow_itself_does_and_a_convex_one_is_lit_throughout() {
         rotation: DQuat::from_rotation_z(degrees.to_radians()),
         ..at(x, 0.0, 0.0)
     };
-    let drawn = TriangleMesh::new(&cube(), DVec3::ZERO, Colouring::Own).unwrap();
+    let drawn = TriangleMesh::new(&Mesh::cuboid(DVec3::ONE), DVec3::ZERO, Colouring::Own).unwrap();
     assert!(drawn.closed && !drawn.shadows_itself);
     let out = render(
         &with(
-            &cube(),
+            &Mesh::cuboid(DVec3::ONE),
             &[(0.0, turned(-0.1, 0.0)), (1.0, turned(0.1, 40.0))],
         ),
         &Method::ANALYTIC,

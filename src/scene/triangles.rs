@@ -242,10 +242,9 @@ fn corner_normals(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::surfels::mesh::tests::cuboid;
 
     fn cube() -> Mesh {
-        cuboid(DVec3::ONE)
+        Mesh::cuboid(DVec3::ONE)
     }
 
     #[test]

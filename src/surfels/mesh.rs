@@ -46,6 +46,33 @@ pub struct MeshSamples {
 }
 
 impl Mesh {
+    /// An axis-aligned box centred on the origin, two outward-wound triangles per side.
+    pub fn cuboid(size: DVec3) -> Mesh {
+        let corner = |k: u32| {
+            DVec3::new(
+                if k & 1 == 0 { -0.5 } else { 0.5 },
+                if k & 2 == 0 { -0.5 } else { 0.5 },
+                if k & 4 == 0 { -0.5 } else { 0.5 },
+            ) * size
+        };
+        // Each side's corners in counter-clockwise order seen from outside.
+        let sides = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        Mesh {
+            positions: (0..8).map(corner).collect(),
+            triangles: sides
+                .iter()
+                .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
+                .collect(),
+        }
+    }
+
     /// The corners of triangle `t`, or `None` when an index is past the positions.
     pub(crate) fn corners(&self, t: [u32; 3]) -> Option<[DVec3; 3]> {
         let corner = |i: u32| self.positions.get(i as usize).copied();
@@ -363,33 +390,6 @@ pub(crate) mod tests {
         }
     }
 
-    /// An axis-aligned box centred on the origin, two outward-wound triangles per side.
-    pub(crate) fn cuboid(size: DVec3) -> Mesh {
-        let corner = |k: u32| {
-            DVec3::new(
-                if k & 1 == 0 { -0.5 } else { 0.5 },
-                if k & 2 == 0 { -0.5 } else { 0.5 },
-                if k & 4 == 0 { -0.5 } else { 0.5 },
-            ) * size
-        };
-        // Each side's corners in counter-clockwise order seen from outside.
-        let sides = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        Mesh {
-            positions: (0..8).map(corner).collect(),
-            triangles: sides
-                .iter()
-                .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
-                .collect(),
-        }
-    }
-
     /// A `side` × `side` grid of the unit square with its inner vertices moved by up to a third
     /// of a cell, so that its triangles differ in size, facing +z.
     fn jittered_sheet(side: u32, z: f64) -> Mesh {
@@ -438,7 +438,7 @@ pub(crate) mod tests {
     #[test]
     fn areas_add_up_to_the_surface_area() {
         let cases = [
-            (cuboid(DVec3::new(1.0, 2.0, 3.0)), 22.0, 1000),
+            (Mesh::cuboid(DVec3::new(1.0, 2.0, 3.0)), 22.0, 1000),
             (square(2.0), 4.0, 1),
             (square(2.0), 4.0, 7),
             (jittered_sheet(40, 0.0), 1.0, 1000),
@@ -456,7 +456,7 @@ pub(crate) mod tests {
     #[test]
     fn each_triangle_gets_its_share_of_the_pieces() {
         let size = DVec3::new(1.0, 2.0, 3.0);
-        let mesh = cuboid(size);
+        let mesh = Mesh::cuboid(size);
         let count = 1000;
         let samples = mesh.sample(count);
         for axis in 0..3 {
@@ -495,7 +495,7 @@ pub(crate) mod tests {
     #[test]
     fn normals_are_the_faces_normals_and_surfels_lie_on_them() {
         let size = DVec3::new(1.0, 2.0, 3.0);
-        for s in cuboid(size).sample(2000).surfels {
+        for s in Mesh::cuboid(size).sample(2000).surfels {
             let axis = (0..3).find(|&k| s.normal[k].abs() == 1.0).unwrap();
             let outward = s.normal[axis];
             assert_eq!(s.normal.length(), 1.0);
