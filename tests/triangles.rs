@@ -567,3 +567,72 @@ fn a_mesh_that_can_shadow_itself_does_and_a_convex_one_is_lit_throughout() {
     assert!((f64::from(p[0]) - lit_value).abs() < 1e-3, "{p:?}");
     assert_eq!(out.stats.triangles.point_sampled, 0);
 }
+
+/// A unit sphere as `rings` × `segments` quads between its poles, wound outward.
+fn uv_sphere(rings: u32, segments: u32) -> Mesh {
+    let mut positions = vec![DVec3::Y];
+    for i in 1..rings {
+        let theta = std::f64::consts::PI * f64::from(i) / f64::from(rings);
+        for j in 0..segments {
+            let phi = std::f64::consts::TAU * f64::from(j) / f64::from(segments);
+            positions.push(DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            ));
+        }
+    }
+    positions.push(-DVec3::Y);
+    let bottom = positions.len() as u32 - 1;
+    let at = |i: u32, j: u32| 1 + (i - 1) * segments + j % segments;
+    let mut triangles = Vec::new();
+    for j in 0..segments {
+        triangles.push([0, at(1, j), at(1, j + 1)]);
+        triangles.push([bottom, at(rings - 1, j + 1), at(rings - 1, j)]);
+    }
+    for i in 1..rings - 1 {
+        for j in 0..segments {
+            let [a, b, c, d] = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+            triangles.extend([[a, b, c], [a, c, d]]);
+        }
+    }
+    Mesh {
+        positions,
+        triangles,
+    }
+}
+
+#[test]
+fn a_smooth_mesh_lit_from_above_is_ambient_only_below_its_equator_up_to_its_silhouette() {
+    // Light straight down on a smooth sphere seen from the side: every point below the equator
+    // band faces away from the light, so no pixel there may be brighter than ambient × albedo,
+    // its silhouette included, where smooth normals face away from the eye on triangles that
+    // face it (turned to the eye's side, they would be lit from inside).
+    let sphere = uv_sphere(24, 48);
+    let drawn = TriangleMesh::new(&sphere, DVec3::ZERO, Colouring::Own).unwrap();
+    assert!(drawn.closed);
+    for shadows in [false, true] {
+        let light = Light::new(DVec3::Y, 0.8).unwrap().with_shadows(shadows);
+        let s = scene(201, 4)
+            .with_lighting(Lighting::new(0.2, vec![light]).unwrap())
+            .with_object(object(
+                "sphere",
+                &sphere,
+                [1.0; 3],
+                &[(0.0, at(0.0, 0.0, 0.0))],
+            ));
+        for method in [Method::STATIC, Method::ANALYTIC] {
+            let image = render(&s, &method).image;
+            // Rows 125–200 lie below y = −0.43 on the sphere (57 px per unit).
+            let brightest = (125..201)
+                .flat_map(|y| (0..201).map(move |x| (x, y)))
+                .map(|(x, y)| pixel(&image, x, y)[0])
+                .fold(0.0f32, f32::max);
+            assert!(
+                brightest <= 0.2 + 1e-5,
+                "{} shadows {shadows}: {brightest}",
+                method.name()
+            );
+        }
+    }
+}

@@ -144,15 +144,15 @@ fn is_closed(triangles: &[[u32; 3]]) -> bool {
             .all(|&(a, b)| edges.binary_search(&(b, a)).is_ok())
 }
 
-/// Every corner of `triangles`, and [`PLANAR_TOLERANCE`] as a distance for them.
-fn corners_and_tolerance<'a>(
-    positions: &'a [DVec3],
-    triangles: &'a [[u32; 3]],
-) -> (impl Iterator<Item = DVec3> + Clone + 'a, f64) {
-    let corners = triangles.iter().flatten().map(|&v| positions[v as usize]);
+/// The vertices `triangles` use, each once, and [`PLANAR_TOLERANCE`] as a distance for them.
+fn corners_and_tolerance(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DVec3>, f64) {
+    let mut used: Vec<u32> = triangles.iter().flatten().copied().collect();
+    used.sort_unstable();
+    used.dedup();
+    let corners: Vec<DVec3> = used.iter().map(|&v| positions[v as usize]).collect();
     let (lo, hi) = corners
-        .clone()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
             (lo.min(p), hi.max(p))
         });
     (corners, PLANAR_TOLERANCE * (hi - lo).length())
@@ -169,8 +169,10 @@ fn is_planar(positions: &[DVec3], triangles: &[[u32; 3]], face_normals: &[DVec3]
         return false;
     };
     let (normal, origin) = (normal.normalize(), positions[largest[0] as usize]);
-    let (mut corners, tolerance) = corners_and_tolerance(positions, triangles);
-    corners.all(|p| (p - origin).dot(normal).abs() <= tolerance)
+    let (corners, tolerance) = corners_and_tolerance(positions, triangles);
+    corners
+        .iter()
+        .all(|&p| (p - origin).dot(normal).abs() <= tolerance)
 }
 
 /// Whether no corner of `triangles` lies more than [`PLANAR_TOLERANCE`] in front of any
@@ -184,8 +186,8 @@ fn is_convex(positions: &[DVec3], triangles: &[[u32; 3]], face_normals: &[DVec3]
     triangles.iter().zip(face_normals).all(|(t, n)| {
         let (normal, origin) = (n.normalize(), positions[t[0] as usize]);
         corners
-            .clone()
-            .all(|p| (p - origin).dot(normal) <= tolerance)
+            .iter()
+            .all(|&p| (p - origin).dot(normal) <= tolerance)
     })
 }
 

@@ -952,8 +952,8 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// The shading normal (world, facing the eye: both sides of a triangle are drawn) and the
-    /// world point the ray `d` sees on `item` at segment fraction `s`.
+    /// The shading normal (world, on the side of the triangle the eye sees: both sides are
+    /// drawn) and the world point the ray `d` sees on `item` at segment fraction `s`.
     fn surface(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> (DVec3, DVec3) {
         self.surface_with(item, triangle, d, s, triangle.barycentric(d, s))
     }
@@ -990,10 +990,14 @@ impl<'a> Prepared<'a> {
         let local: DVec3 = (0..3).map(|k| normals[k] * weights[k]).sum();
         let [r0, r1] = self.segment(item).rotation;
         let mut world = (r0 * local).lerp(r1 * local, s).normalize_or_zero();
-        if self.camera.view.transform_vector3(world).dot(d) > 0.0 {
+        // Both sides are drawn, and the side the ray meets turns the normal: not the shading
+        // normal's own direction, which near a smooth mesh's silhouette faces away from the eye
+        // on triangles that face it, and flipped would be lit from inside.
+        let (depth, back) = triangle.hit(d, s);
+        if back {
             world = -world;
         }
-        let depth = triangle.depth(d, s).unwrap_or(0.0);
+        let depth = depth.unwrap_or(0.0);
         (world, self.view_to_world.transform_point3(d * depth))
     }
 

@@ -112,10 +112,22 @@ impl MovingTriangle {
     /// at s: (n·a)/(n·d). `None` when the plane is edge-on to the ray or not in front.
     #[must_use]
     pub fn depth(&self, d: DVec3, s: f64) -> Option<f64> {
+        self.hit(d, s).0
+    }
+
+    /// [`MovingTriangle::depth`], and whether the ray meets the triangle's back: the side its
+    /// winding's normal points away from.
+    #[must_use]
+    #[inline]
+    pub fn hit(&self, d: DVec3, s: f64) -> (Option<f64>, bool) {
         let [a, b, c] = self.at(s);
         let n = (b - a).cross(c - a);
-        let depth = n.dot(a) / n.dot(d);
-        (depth.is_finite() && depth > 0.0).then_some(depth)
+        let towards_ray = n.dot(d);
+        let depth = n.dot(a) / towards_ray;
+        (
+            (depth.is_finite() && depth > 0.0).then_some(depth),
+            towards_ray > 0.0,
+        )
     }
 
     /// Perspective-correct barycentric weights of the ray `d`'s hit at s: each corner's weight
