@@ -561,7 +561,7 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
             .shots
             .iter()
             .map(|s| {
-                let detail = if s.full_detail { " full detail" } else { "" };
+                let detail = gallery::full_detail_mark(s.full_detail);
                 format!("{} {}{detail} {:.2} s", s.method, s.knob, s.seconds)
             })
             .collect();

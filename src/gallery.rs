@@ -102,6 +102,16 @@ fn leading_comment(path: &Path) -> String {
         .join(" ")
 }
 
+/// What a render's label ends in when it was drawn at full detail ([`Shot::full_detail`]).
+#[must_use]
+pub fn full_detail_mark(full_detail: bool) -> &'static str {
+    if full_detail {
+        " full detail"
+    } else {
+        ""
+    }
+}
+
 /// The images every scene gets: reference, static, blur and a hint per style in
 /// `options.styles`. A scene may need more (its own style, `analytic`, full detail): `run` adds
 /// them to the progress bar's length as it finds them.
@@ -175,7 +185,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
         for (method, knob, lod) in jobs {
             let full_detail = lod == Lod::Off && !matches!(method, Method::Reference { .. });
             if let Some(bar) = progress {
-                let detail = if full_detail { " full detail" } else { "" };
+                let detail = full_detail_mark(full_detail);
                 bar.set_message(format!("{name} {} {knob}{detail}", method.name()));
             }
             let start = Instant::now();

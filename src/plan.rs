@@ -296,14 +296,20 @@ impl<'a> Plan<'a> {
         (0..self.objects.len()).any(|i| self.draws_triangles(i))
     }
 
-    /// Where object `index` is drawn as triangles in a scene with shadows and cannot shadow
-    /// itself ([`TriangleMesh::shadows_itself`]), what its shadow lookups leave out.
-    fn cannot_shadow_itself(&self, index: usize) -> Option<String> {
-        let mesh = self.mesh_of(index)?;
-        (self.draws_triangles(index) && self.scene.lighting.any_shadows() && !mesh.shadows_itself)
-            .then(|| {
+    /// What `--explain` says of object `index`'s mesh: its level of detail, and where it is
+    /// drawn as triangles in a scene with shadows and cannot shadow itself
+    /// ([`TriangleMesh::shadows_itself`]), what its shadow lookups leave out.
+    fn mesh_lines(&self, index: usize) -> impl Iterator<Item = String> {
+        let o = &self.objects[index];
+        let shadows = self.mesh_of(index).is_some_and(|mesh| {
+            self.draws_triangles(index) && self.scene.lighting.any_shadows() && !mesh.shadows_itself
+        });
+        o.mesh_lod
+            .explain(o.faces, &self.scene.mesh_detail)
+            .into_iter()
+            .chain(shadows.then(|| {
                 "shadows: planar, or closed and convex, so it cannot shadow itself: its own triangles are left out of its shadow lookups".to_string()
-            })
+            }))
     }
 
     /// Whether the level of detail simplifies any object's mesh, so that full detail
@@ -422,11 +428,8 @@ impl<'a> Plan<'a> {
                         o.name, o.surfels
                     ));
                     line(format!("    {}", o.lod.outcome.explain()));
-                    if let Some(mesh) = o.mesh_lod.explain(o.faces, &self.scene.mesh_detail) {
+                    for mesh in self.mesh_lines(index) {
                         line(format!("    {mesh}"));
-                    }
-                    if let Some(why) = self.cannot_shadow_itself(index) {
-                        line(format!("    {why}"));
                     }
                 }
                 ObjectMotion::Moving {
@@ -444,11 +447,8 @@ impl<'a> Plan<'a> {
                         if segments.len() == 1 { "" } else { "s" },
                     ));
                     line(format!("    {}", o.lod.outcome.explain()));
-                    if let Some(mesh) = o.mesh_lod.explain(o.faces, &self.scene.mesh_detail) {
+                    for mesh in self.mesh_lines(index) {
                         line(format!("    {mesh}"));
-                    }
-                    if let Some(why) = self.cannot_shadow_itself(index) {
-                        line(format!("    {why}"));
                     }
                     match capped {
                         Some(SegmentCap::PerInterval) => line(format!(

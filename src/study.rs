@@ -67,6 +67,9 @@ pub const FULL_DETAIL_BLUR_PX: f64 = DEFAULT_TOLERANCE_PX;
 /// The `kernel3d` sub-frame counts also studied at full detail.
 pub const FULL_DETAIL_SUBFRAMES: [usize; 2] = [4, 8];
 
+/// What a series' name ends in at `--lod off`.
+const FULL_DETAIL_SERIES: &str = " full detail";
+
 /// One setting to study.
 #[derive(Clone, Debug)]
 struct Setting {
@@ -134,7 +137,7 @@ impl Setting {
             } => format!("{} approx", self.method.name()),
             method => method.name().to_string(),
         };
-        self.with_lod(series, " full detail")
+        self.with_lod(series, FULL_DETAIL_SERIES)
     }
 
     fn file_stem(&self) -> String {
@@ -293,7 +296,8 @@ pub fn run(
         });
     }
     // Triangles drawn analytically, across the sub-segment tolerance (its only error in time).
-    if scene.objects.iter().any(|o| o.mesh().is_some()) {
+    let has_meshes = scene.objects.iter().any(|o| o.mesh().is_some());
+    if has_meshes {
         setups.extend(ANALYTIC_TOLERANCES_PX.iter().map(|&tolerance_px| {
             Setting::auto(Method::Analytic {
                 tolerance_px,
@@ -311,8 +315,8 @@ pub fn run(
     // Where the level of detail simplifies a mesh, the simplified renders level off at the
     // simplification's error against the full-detail converged reference; `analytic` and the
     // reference are then also studied at full detail, and compared with each other there.
-    let triangles_full_detail = scene.objects.iter().any(|o| o.mesh().is_some())
-        && Plan::new(scene, &Method::ANALYTIC)?.simplifies_a_mesh();
+    let triangles_full_detail =
+        has_meshes && Plan::new(scene, &Method::ANALYTIC)?.simplifies_a_mesh();
     if triangles_full_detail {
         setups.extend(ANALYTIC_TOLERANCES_PX.iter().map(|&tolerance_px| Setting {
             method: Method::Analytic {
@@ -390,12 +394,13 @@ pub fn samples_to_match<'a>(
 /// The reference series a point of series `method` is compared with: at full detail where the
 /// study drew the reference at full detail too, so that neither side carries the level of
 /// detail's error.
-fn reference_series(points: &[StudyPoint], method: &str) -> &'static str {
-    const FULL: &str = "reference full detail";
-    if method.ends_with(" full detail") && points.iter().any(|p| p.method == FULL) {
-        FULL
+fn reference_series(points: &[StudyPoint], method: &str) -> String {
+    let reference = Method::Reference { samples: 1 }.name();
+    let full = format!("{reference}{FULL_DETAIL_SERIES}");
+    if method.ends_with(FULL_DETAIL_SERIES) && points.iter().any(|p| p.method == full) {
+        full
     } else {
-        "reference"
+        reference.to_string()
     }
 }
 
@@ -408,7 +413,7 @@ pub fn equal_error(points: &[StudyPoint], method: &str) -> String {
     let mut out = String::new();
     let matched = |p: &StudyPoint, name: &str, metric: fn(&ImageError) -> f64| {
         let reference = reference_series(points, &p.method);
-        match samples_to_match(points, reference, metric, &p.error) {
+        match samples_to_match(points, &reference, metric, &p.error) {
             Some(r) => format!(
                 "{name} {:.5} matches the {reference} at {} ({:.3} s, {:.2}× its time)",
                 metric(&p.error),

@@ -90,8 +90,7 @@ impl TriangleMesh {
             })
             .collect();
         let closed = is_closed(&triangles);
-        let shadows_itself = !(is_planar(&positions, &triangles, &face_normals)
-            || closed && is_convex(&positions, &triangles, &face_normals));
+        let shadows_itself = shadows_itself(&positions, &triangles, &face_normals, closed);
         Ok(TriangleMesh {
             positions,
             triangles,
@@ -144,8 +143,17 @@ fn is_closed(triangles: &[[u32; 3]]) -> bool {
             .all(|&(a, b)| edges.binary_search(&(b, a)).is_ok())
 }
 
-/// The vertices `triangles` use, each once, and [`PLANAR_TOLERANCE`] as a distance for them.
-fn corners_and_tolerance(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DVec3>, f64) {
+/// [`TriangleMesh::shadows_itself`] for `triangles` over `positions` (`face_normals` twice
+/// their areas along their winding's normals), `closed` as [`is_closed`] says: not when every
+/// vertex they use lies within [`PLANAR_TOLERANCE`] of the largest triangle's plane, nor, for a
+/// closed mesh of at most [`MAX_CONVEX_TEST_TRIANGLES`], when none lies more than that in front
+/// of any triangle's plane (convex and wound outward).
+fn shadows_itself(
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+    face_normals: &[DVec3],
+    closed: bool,
+) -> bool {
     let mut used: Vec<u32> = triangles.iter().flatten().copied().collect();
     used.sort_unstable();
     used.dedup();
@@ -155,40 +163,26 @@ fn corners_and_tolerance(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DV
         .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
             (lo.min(p), hi.max(p))
         });
-    (corners, PLANAR_TOLERANCE * (hi - lo).length())
-}
-
-/// Whether every corner of `triangles` lies within [`PLANAR_TOLERANCE`] of the plane of the
-/// largest (`face_normals` are twice the areas along the normals).
-fn is_planar(positions: &[DVec3], triangles: &[[u32; 3]], face_normals: &[DVec3]) -> bool {
-    let Some((largest, normal)) = triangles
+    let tolerance = PLANAR_TOLERANCE * (hi - lo).length();
+    // How far each corner lies in front of the plane of triangle t.
+    let heights = |t: &[u32; 3], n: &DVec3| {
+        let (normal, origin) = (n.normalize(), positions[t[0] as usize]);
+        corners.iter().map(move |&p| (p - origin).dot(normal))
+    };
+    let largest = triangles
         .iter()
         .zip(face_normals)
-        .max_by(|a, b| a.1.length_squared().total_cmp(&b.1.length_squared()))
-    else {
-        return false;
+        .max_by(|a, b| a.1.length_squared().total_cmp(&b.1.length_squared()));
+    let planar = largest.is_some_and(|(t, n)| heights(t, n).all(|h| h.abs() <= tolerance));
+    let convex = || {
+        closed
+            && triangles.len() <= MAX_CONVEX_TEST_TRIANGLES
+            && triangles
+                .iter()
+                .zip(face_normals)
+                .all(|(t, n)| heights(t, n).all(|h| h <= tolerance))
     };
-    let (normal, origin) = (normal.normalize(), positions[largest[0] as usize]);
-    let (corners, tolerance) = corners_and_tolerance(positions, triangles);
-    corners
-        .iter()
-        .all(|&p| (p - origin).dot(normal).abs() <= tolerance)
-}
-
-/// Whether no corner of `triangles` lies more than [`PLANAR_TOLERANCE`] in front of any
-/// triangle's plane, front as the winding (`face_normals`) says: a closed mesh passing is convex
-/// and wound outward. Meshes of more than [`MAX_CONVEX_TEST_TRIANGLES`] are not tested.
-fn is_convex(positions: &[DVec3], triangles: &[[u32; 3]], face_normals: &[DVec3]) -> bool {
-    if triangles.len() > MAX_CONVEX_TEST_TRIANGLES {
-        return false;
-    }
-    let (corners, tolerance) = corners_and_tolerance(positions, triangles);
-    triangles.iter().zip(face_normals).all(|(t, n)| {
-        let (normal, origin) = (n.normalize(), positions[t[0] as usize]);
-        corners
-            .iter()
-            .all(|&p| (p - origin).dot(normal) <= tolerance)
-    })
+    !(planar || convex())
 }
 
 /// The faces around each of `vertices` vertices, as a compressed list: vertex v's are

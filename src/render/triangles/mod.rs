@@ -800,8 +800,8 @@ impl<'a> Prepared<'a> {
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
-        let first = self.surface_point(item, &triangle, d, fraction(span[0]));
-        let start = (first.normal, first.point);
+        let first = triangle.barycentric(d, fraction(span[0]));
+        let start = self.surface_with(item, &triangle, d, fraction(span[0]), first);
         let ends = if segment.still {
             [start; 2]
         } else {
@@ -893,7 +893,7 @@ impl<'a> Prepared<'a> {
             // Nothing but the shadows changes: shade once, weigh each cut piece's light by its
             // shutter mass.
             let (normal, p) = ends[0];
-            let albedo = first.albedo;
+            let albedo = self.albedo_with(item, first);
             let (mut sum, mut mass) = (0.0, 0.0);
             for pair in cuts.windows(2) {
                 let m = self.scene.shutter.mass(pair[0], pair[1]);
