@@ -305,7 +305,15 @@ fn a_still_floor_under_a_sliding_occluder_is_lit_for_the_closed_form_time() {
         ));
     let lit = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
     let expected = 0.5 * lit + 0.25 * 0.2;
-    let p = pixel(&render(&s, &Method::ANALYTIC).image, 16, 16);
+    let out = render(&s, &Method::ANALYTIC);
+    let p = pixel(&out.image, 16, 16);
+    // The shadow map's tiles that only the floor reaches hold no occluders (the floor cannot
+    // shadow itself); the ones the occluder reaches do, or the shadow above would be missing.
+    let stats = out.stats.triangles;
+    assert!(
+        0 < stats.shadow_tiles_left_empty && stats.shadow_tiles_left_empty < stats.shadow_tiles,
+        "{stats:?}"
+    );
     // Percentage-closer filtering blurs each shadow edge over a texel: 0.01 units of a 4-unit
     // slide, 0.3 % of the time.
     assert!(
@@ -535,12 +543,11 @@ fn a_mesh_that_can_shadow_itself_does_and_a_convex_one_is_lit_throughout() {
             .with_object(object("mesh", mesh, [1.0; 3], keys))
     };
     let still = [(0.0, at(0.0, 0.0, 0.0))];
-    let p = pixel(
-        &render(&with(&folded, &still), &Method::ANALYTIC).image,
-        16,
-        16,
-    );
+    let out = render(&with(&folded, &still), &Method::ANALYTIC);
+    let p = pixel(&out.image, 16, 16);
     assert!((f64::from(p[0]) - 0.2).abs() < 1e-3, "{p:?}");
+    // No shadow-map tile is left empty for a mesh that can shadow itself.
+    assert_eq!(out.stats.triangles.shadow_tiles_left_empty, 0);
     // Without its wall the floor is planar, and lit.
     let p = pixel(
         &render(&with(&square(2.0), &still), &Method::ANALYTIC).image,

@@ -97,6 +97,11 @@ pub struct TriangleStats {
     pub point_sampled: usize,
     /// Spatial samples per pixel.
     pub spatial_samples: u32,
+    /// Tiles of the shadow maps (every light's, every frame's).
+    pub shadow_tiles: usize,
+    /// Of those, tiles left without occluders: only one object that cannot shadow itself
+    /// reaches them, and its own lookups leave it out.
+    pub shadow_tiles_left_empty: usize,
 }
 
 impl TriangleStats {
@@ -110,6 +115,12 @@ impl TriangleStats {
             "triangles: {} items (triangle × sub-segment or instant), {} spatial samples per pixel; {} left out behind the near plane\n",
             self.items, self.spatial_samples, self.behind_near
         );
+        if self.shadow_tiles > 0 {
+            out.push_str(&format!(
+                "  shadow maps: {} of {} tiles left empty (only one object that cannot shadow itself reaches them)\n",
+                self.shadow_tiles_left_empty, self.shadow_tiles
+            ));
+        }
         if self.intervals > 0 {
             out.push_str(&format!(
                 "  analytic visibility: {} intervals, at most {} on one sample (cap {MAX_INTERVALS_PER_SAMPLE}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped\n",
@@ -137,6 +148,8 @@ impl TriangleStats {
         self.joined_runs += other.joined_runs;
         self.point_sampled += other.point_sampled;
         self.spatial_samples = self.spatial_samples.max(other.spatial_samples);
+        self.shadow_tiles += other.shadow_tiles;
+        self.shadow_tiles_left_empty += other.shadow_tiles_left_empty;
     }
 }
 
@@ -205,6 +218,8 @@ struct Prepared<'a> {
     items: Vec<Item>,
     /// Triangle × segment pairs left out, wholly behind the near plane.
     behind_near: usize,
+    /// Whether some item is behind the near plane part of its segment.
+    near_clipped: bool,
 }
 
 /// An image of the triangle objects and where they hide what lies behind.
@@ -310,8 +325,9 @@ impl<'a> Prepared<'a> {
             objects,
             items: Vec::new(),
             behind_near: 0,
+            near_clipped: false,
         };
-        (prepared.items, prepared.behind_near) = prepared.make_items(count);
+        (prepared.items, prepared.behind_near, prepared.near_clipped) = prepared.make_items(count);
         prepared
     }
 
@@ -353,13 +369,14 @@ impl<'a> Prepared<'a> {
     /// on screen, with its pixel bounds: the projections of its corners at the ends of its time
     /// in front (a segment's straight path in camera space projects to a straight path on
     /// screen, so they bound it), widened by a pixel.
-    /// Also returns how many were left out behind the near plane. `count` is the number of
-    /// triangle × segment pairs.
-    fn make_items(&self, count: usize) -> (Vec<Item>, usize) {
+    /// Also returns how many were left out behind the near plane, and whether some item is
+    /// behind it part of the time. `count` is the number of triangle × segment pairs.
+    fn make_items(&self, count: usize) -> (Vec<Item>, usize, bool) {
         let camera = &self.camera;
         let (width, height) = (camera.width, camera.height);
         let mut items = Vec::with_capacity(count);
         let mut behind_near = 0;
+        let mut near_clipped = false;
         for (o, (_, mesh, segments)) in self.objects.iter().enumerate() {
             for s in 0..segments.len() {
                 for t in 0..mesh.triangles.len() {
@@ -374,6 +391,7 @@ impl<'a> Prepared<'a> {
                         behind_near += 1;
                         continue;
                     };
+                    near_clipped |= window != [0.0, 1.0];
                     if mesh.closed && triangle.back_facing_throughout() {
                         continue;
                     }
@@ -401,7 +419,7 @@ impl<'a> Prepared<'a> {
                 }
             }
         }
-        (items, behind_near)
+        (items, behind_near, near_clipped)
     }
 
     /// The items binned to the tiles of `grid` by their bounds.
@@ -454,6 +472,8 @@ impl<'a> Prepared<'a> {
             items: self.items.len(),
             behind_near: self.behind_near,
             spatial_samples: camera.spatial_samples,
+            shadow_tiles: self.shadows.iter().map(ShadowMap::tiles).sum(),
+            shadow_tiles_left_empty: self.shadows.iter().map(ShadowMap::left_empty).sum(),
             ..TriangleStats::default()
         };
         for s in &stats {
@@ -1077,15 +1097,19 @@ impl<'a> Prepared<'a> {
         let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
         let pool = ScratchPool::default();
-        let tiles = (0..grid.count())
+        let tiles: Vec<(Vec<u32>, Vec<Occluder>, usize)> = (0..grid.count())
             .into_par_iter()
             .with_max_len(1)
             .map(|tile| {
+                let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
+                let texels = ((x1 - x0) * (y1 - y0)) as usize;
+                let list = lists.list(tile);
+                if self.shadows_nothing_read_here(list) {
+                    return (vec![0; texels + 1], Vec::new(), 1);
+                }
                 pool.with(|scratch| {
                     let mut stats = TriangleStats::default();
-                    let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
-                    self.fill_tile(lists.list(tile), bounds, &offsets, scratch, &mut stats);
-                    let texels = ((x1 - x0) * (y1 - y0)) as usize;
+                    self.fill_tile(list, bounds, &offsets, scratch, &mut stats);
                     let mut starts = Vec::with_capacity(texels + 1);
                     let mut found = Vec::new();
                     starts.push(0u32);
@@ -1119,14 +1143,38 @@ impl<'a> Prepared<'a> {
                             }
                         })
                         .collect();
-                    (starts, occluders)
+                    (starts, occluders, 0)
                 })
             })
             .collect();
+        let left_empty = tiles.iter().map(|(_, _, empty)| empty).sum();
         Occluders {
             camera: self.camera.clone(),
-            tiles,
+            tiles: tiles
+                .into_iter()
+                .map(|(starts, list, _)| (starts, list))
+                .collect(),
+            left_empty,
         }
+    }
+
+    /// Whether a shadow-map tile whose items are `list` can be left without occluders: they all
+    /// belong to one object that cannot shadow itself. A receiver's lookups read only texels
+    /// within its own item's bounds (its point lies on its triangle, whose corners' projections
+    /// over the segment, widened by a texel, bound the item; a bilinear lookup reads half a
+    /// texel further), so only that object's receivers read this tile, and they leave all of its
+    /// occluders out. Not where a triangle crosses the light's near plane: its bounds then hold
+    /// only the part in front.
+    fn shadows_nothing_read_here(&self, list: &[u32]) -> bool {
+        if self.near_clipped || self.behind_near > 0 {
+            return false;
+        }
+        let object = |index: &u32| self.items[*index as usize].object;
+        list.first().is_some_and(|first| {
+            let only = object(first);
+            !self.objects[only as usize].1.shadows_itself
+                && list.iter().all(|index| object(index) == only)
+        })
     }
 }
 

@@ -151,9 +151,9 @@ pub struct Occluder {
     pub id: (u32, u32),
 }
 
-/// A texel's nearest occluder depth over all time, its triangle, and the nearest depth of every
-/// other triangle (+∞ where there is none): the nearest that can shadow any receiver, its own
-/// triangle left out, in one look.
+/// The nearest occluder depth over all time of a texel (or of a tile's texels), its triangle,
+/// and the nearest depth of every other triangle (+∞ where there is none): the nearest that can
+/// shadow any receiver, its own triangle left out, in one look.
 #[derive(Clone, Copy, Debug)]
 struct Nearest {
     depth: f32,
@@ -162,26 +162,44 @@ struct Nearest {
 }
 
 impl Nearest {
+    const NONE: Nearest = Nearest {
+        depth: f32::INFINITY,
+        id: (u32::MAX, u32::MAX),
+        others: f32::INFINITY,
+    };
+
     fn of(occluders: &[Occluder]) -> Nearest {
-        let mut nearest = Nearest {
-            depth: f32::INFINITY,
-            id: (u32::MAX, u32::MAX),
-            others: f32::INFINITY,
-        };
-        for o in occluders {
-            let depth = o.piece.depth[0].min(o.piece.depth[1]) as f32;
-            if o.id == nearest.id {
-                nearest.depth = nearest.depth.min(depth);
-            } else if depth < nearest.depth {
-                // The old nearest is another triangle's, and nearer than any other but this.
-                nearest.others = nearest.depth;
-                nearest.depth = depth;
-                nearest.id = o.id;
-            } else {
-                nearest.others = nearest.others.min(depth);
-            }
+        occluders
+            .iter()
+            .map(|o| Nearest {
+                depth: o.piece.depth[0].min(o.piece.depth[1]) as f32,
+                id: o.id,
+                others: f32::INFINITY,
+            })
+            .fold(Nearest::NONE, Nearest::merge)
+    }
+
+    /// The nearest occluders of both texel sets together.
+    fn merge(self, other: Nearest) -> Nearest {
+        if self.id == other.id {
+            return Nearest {
+                depth: self.depth.min(other.depth),
+                id: self.id,
+                others: self.others.min(other.others),
+            };
         }
-        nearest
+        let (near, far) = if self.depth <= other.depth {
+            (self, other)
+        } else {
+            (other, self)
+        };
+        // The far set's nearest is another triangle's than the near set's, and no farther than
+        // its others.
+        Nearest {
+            depth: near.depth,
+            id: near.id,
+            others: near.others.min(far.depth),
+        }
     }
 
     /// The nearest depth of any triangle but `own`.
@@ -201,6 +219,8 @@ pub struct Occluders {
     pub camera: Camera,
     /// Per tile: where each texel's list starts, and the lists.
     pub tiles: Vec<(Vec<u32>, Vec<Occluder>)>,
+    /// Tiles left without occluders: only one object that cannot shadow itself reaches them.
+    pub left_empty: usize,
 }
 
 /// A light's shadow map, ready for lookups.
@@ -210,6 +230,8 @@ pub struct ShadowMap {
     /// The nearest occluders of each texel over all time, row by row: a receiver whose depth
     /// limit lies nearer than every other triangle's occluder its path reads is lit throughout.
     nearest: Vec<Nearest>,
+    /// The same for each tile's texels, row by row: one look for a path within a tile.
+    nearest_in_tile: Vec<Nearest>,
 }
 
 impl ShadowMap {
@@ -217,19 +239,60 @@ impl ShadowMap {
     #[must_use]
     pub fn new(occluders: Occluders) -> ShadowMap {
         let tiles_x = occluders.camera.width.div_ceil(crate::raster::TILE_PX);
+        let occluders_tiles = occluders.tiles.len();
         let mut map = ShadowMap {
             occluders,
             tiles_x,
             nearest: Vec::new(),
+            nearest_in_tile: vec![Nearest::NONE; occluders_tiles],
         };
         let side = map.occluders.camera.width;
         map.nearest = (0..side * side)
             .map(|i| {
-                let (x, y) = (i64::from(i % side), i64::from(i / side));
-                Nearest::of(map.texel(x, y))
+                let (x, y) = (i % side, i / side);
+                let nearest = Nearest::of(map.texel(i64::from(x), i64::from(y)));
+                let tile = map.tile_of(x, y);
+                map.nearest_in_tile[tile] = map.nearest_in_tile[tile].merge(nearest);
+                nearest
             })
             .collect();
         map
+    }
+
+    /// The tile holding texel (x, y), which lies in the map.
+    fn tile_of(&self, x: u32, y: u32) -> usize {
+        let tile_px = crate::raster::TILE_PX;
+        ((y / tile_px) * self.tiles_x + x / tile_px) as usize
+    }
+
+    /// Whether no occluder of a triangle other than `own` in the tiles holding texels
+    /// `[x0, y0, x1, y1)` lies nearer than `depth`: a receiver that reads only those texels
+    /// and lies no deeper is lit throughout.
+    fn surely_lit_within(&self, [x0, y0, x1, y1]: [u32; 4], depth: f64, own: (u32, u32)) -> bool {
+        let side = self.occluders.camera.width;
+        let (x1, y1) = (x1.min(side), y1.min(side));
+        if x0 >= x1 || y0 >= y1 {
+            return true;
+        }
+        let tile_px = crate::raster::TILE_PX;
+        (y0 / tile_px..=(y1 - 1) / tile_px).all(|ty| {
+            (x0 / tile_px..=(x1 - 1) / tile_px).all(|tx| {
+                let tile = self.tile_of(tx * tile_px, ty * tile_px);
+                f64::from(self.nearest_in_tile[tile].except(own)) >= depth
+            })
+        })
+    }
+
+    /// Tiles of the map.
+    #[must_use]
+    pub fn tiles(&self) -> usize {
+        self.occluders.tiles.len()
+    }
+
+    /// Tiles left without occluders ([`Occluders::left_empty`]).
+    #[must_use]
+    pub fn left_empty(&self) -> usize {
+        self.occluders.left_empty
     }
 
     /// Whether `receiver` is lit throughout its span: in every texel its bilinear lookups can
@@ -304,6 +367,19 @@ impl ShadowMap {
         };
         // Texel indices, clamped to just outside the map first so that one more stays in range.
         let index = |v: f64| floor_to_i64(v.clamp(-2.0, side as f64 + 1.0));
+        // First one look per tile the path's texels lie in: enough where no other triangle's
+        // occluder in them comes nearer than the limit, as on most of a lit surface.
+        let texel_range = |from: f64, to: f64| {
+            [
+                index(from.min(to)).max(0),
+                (index(from.max(to)) + 2).clamp(0, side),
+            ]
+            .map(|v| v as u32)
+        };
+        let ([x0, x1], [y0, y1]) = (texel_range(a.x, b.x), texel_range(a.y, b.y));
+        if self.surely_lit_within([x0, y0, x1, y1], limit, own) {
+            return true;
+        }
         for row in index(lo.y).max(0)..(index(hi.y) + 2).min(side) {
             let (xa, xb) = (x_at(row as f64 - 1.0, 0.0), x_at(row as f64 + 1.0, 1.0));
             for x in index(xa.min(xb)).max(0)..(index(xa.max(xb)) + 2).min(side) {
@@ -353,10 +429,9 @@ impl ShadowMap {
         }
         let (x, y) = (x as u32, y as u32);
         let tile_px = crate::raster::TILE_PX;
-        let (tx, ty) = (x / tile_px, y / tile_px);
-        let (x0, y0) = (tx * tile_px, ty * tile_px);
+        let (x0, y0) = (x / tile_px * tile_px, y / tile_px * tile_px);
         let w = (x0 + tile_px).min(camera.width) - x0;
-        let (starts, list) = &self.occluders.tiles[(ty * self.tiles_x + tx) as usize];
+        let (starts, list) = &self.occluders.tiles[self.tile_of(x, y)];
         let local = ((y - y0) * w + (x - x0)) as usize;
         &list[starts[local] as usize..starts[local + 1] as usize]
     }
@@ -576,6 +651,7 @@ mod tests {
         ShadowMap::new(Occluders {
             camera,
             tiles: vec![(starts, vec![occluder])],
+            left_empty: 0,
         })
     }
 
@@ -631,5 +707,37 @@ mod tests {
         // A path along row 3 reads rows 3 and 4 only.
         let path = [point(&map, 1.2, 3.4), point(&map, 14.6, 3.4)];
         assert!(map.surely_lit(&receiver(path, [0.0, 1.0], (0, 0))));
+    }
+
+    #[test]
+    fn a_tiles_nearest_occluders_are_those_of_all_its_texels_together() {
+        // Texels' lists over three triangles at assorted depths, merged in every split: each
+        // triangle's view of the others (`except`) matches that of the lists joined.
+        let occluder = |depth: f64, id: u32| Occluder {
+            piece: Interval {
+                t: [0.0, 1.0],
+                depth: [depth, depth + 0.5],
+                item: 0,
+            },
+            id: (id, 0),
+        };
+        let all = [
+            occluder(3.0, 0),
+            occluder(1.0, 1),
+            occluder(2.0, 0),
+            occluder(0.5, 2),
+            occluder(4.0, 1),
+            occluder(0.7, 2),
+        ];
+        let joined = Nearest::of(&all);
+        for split in 0..=all.len() {
+            let (a, b) = all.split_at(split);
+            let merged = Nearest::of(a).merge(Nearest::of(b));
+            for own in [(0, 0), (1, 0), (2, 0), (3, 0)] {
+                assert_eq!(merged.except(own), joined.except(own), "{split} {own:?}");
+            }
+        }
+        assert_eq!(joined.except((2, 0)), 1.0);
+        assert_eq!(joined.except((0, 0)), 0.5);
     }
 }
