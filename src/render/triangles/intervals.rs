@@ -57,10 +57,15 @@ pub struct ResolveScratch {
 /// the earliest line that crosses below the current one, so a span with k active pieces costs
 /// O(k²) and yields at most k visible pieces.
 pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut Vec<Interval>) {
-    if let [only] = intervals {
-        // What the sweep below gives for one interval, without its sorting.
-        if only.t[1] > only.t[0] {
-            push_visible(out, out.len(), only, only.t);
+    if intervals
+        .windows(2)
+        .all(|pair| pair[0].t[1] <= pair[1].t[0])
+    {
+        // Already in time order without overlaps (one interval, or one surface's pieces over
+        // consecutive sub-segments): what the sweep below gives, without its sorting.
+        let first = out.len();
+        for interval in intervals.iter().filter(|i| i.t[1] > i.t[0]) {
+            push_visible(out, first, interval, interval.t);
         }
         return;
     }
@@ -164,6 +169,26 @@ mod tests {
         let mut out = Vec::new();
         resolve(intervals, &mut ResolveScratch::default(), &mut out);
         out
+    }
+
+    #[test]
+    fn a_list_in_time_order_resolves_as_the_sweep_resolves_it_shuffled() {
+        // One surface over three sub-segments (the first two on one line, so joined), an empty
+        // piece, and another surface after a gap.
+        let piece = |t: [f64; 2], depth: [f64; 2], item: u32| Interval { t, depth, item };
+        let ordered = [
+            piece([0.0, 0.25], [1.0, 1.5], 0),
+            piece([0.25, 0.5], [1.5, 2.0], 0),
+            piece([0.5, 0.5], [2.0, 2.0], 1),
+            piece([0.5, 0.7], [2.0, 1.0], 0),
+            piece([0.8, 0.9], [3.0, 3.0], 2),
+        ];
+        let mut shuffled = ordered;
+        shuffled.reverse();
+        let out = resolved(&ordered);
+        assert_eq!(out, resolved(&shuffled));
+        assert_eq!(out.len(), 3, "{out:?}");
+        assert_eq!((out[0].t, out[0].depth), ([0.0, 0.5], [1.0, 2.0]));
     }
 
     #[test]

@@ -26,7 +26,7 @@ use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMes
 use intervals::{resolve, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
 use shadow::{Occluder, Occluders, Receiver, ShadowMap};
-use tct::{DepthFunction, EdgeFunctions, MovingTriangle};
+use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayHit};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
 /// render may hold.
@@ -820,8 +820,8 @@ impl<'a> Prepared<'a> {
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
-        let first = triangle.barycentric(d, fraction(span[0]));
-        let start = self.surface_with(item, &triangle, d, fraction(span[0]), first);
+        let first = triangle.ray_hit(d, fraction(span[0]));
+        let start = self.surface_with(item, &first, d, fraction(span[0]));
         let ends = if segment.still {
             [start; 2]
         } else {
@@ -913,7 +913,7 @@ impl<'a> Prepared<'a> {
             // Nothing but the shadows changes: shade once, weigh each cut piece's light by its
             // shutter mass.
             let (normal, p) = ends[0];
-            let albedo = self.albedo_with(item, first);
+            let albedo = self.albedo_with(item, first.weights);
             let (mut sum, mut mass) = (0.0, 0.0);
             for pair in cuts.windows(2) {
                 let m = self.scene.shutter.mass(pair[0], pair[1]);
@@ -975,7 +975,7 @@ impl<'a> Prepared<'a> {
     /// The shading normal (world, on the side of the triangle the eye sees: both sides are
     /// drawn) and the world point the ray `d` sees on `item` at segment fraction `s`.
     fn surface(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> (DVec3, DVec3) {
-        self.surface_with(item, triangle, d, s, triangle.barycentric(d, s))
+        self.surface_with(item, &triangle.ray_hit(d, s), d, s)
     }
 
     /// [`Prepared::surface`] and [`Prepared::albedo`] at once.
@@ -986,25 +986,19 @@ impl<'a> Prepared<'a> {
         d: DVec3,
         s: f64,
     ) -> SurfacePoint {
-        let weights = triangle.barycentric(d, s);
-        let (normal, point) = self.surface_with(item, triangle, d, s, weights);
+        let hit = triangle.ray_hit(d, s);
+        let (normal, point) = self.surface_with(item, &hit, d, s);
         SurfacePoint {
             normal,
             point,
-            albedo: self.albedo_with(item, weights),
+            albedo: self.albedo_with(item, hit.weights),
         }
     }
 
     /// The shading normal and world point where the ray `d` meets `item` at segment fraction
-    /// `s`, at barycentric `weights`.
-    fn surface_with(
-        &self,
-        item: &Item,
-        triangle: &MovingTriangle,
-        d: DVec3,
-        s: f64,
-        weights: [f64; 3],
-    ) -> (DVec3, DVec3) {
+    /// `s`, at `hit`.
+    fn surface_with(&self, item: &Item, hit: &RayHit, d: DVec3, s: f64) -> (DVec3, DVec3) {
+        let weights = hit.weights;
         let (_, mesh, _) = &self.objects[item.object as usize];
         let normals = mesh.normals[item.triangle as usize];
         let local: DVec3 = (0..3).map(|k| normals[k] * weights[k]).sum();
@@ -1013,11 +1007,10 @@ impl<'a> Prepared<'a> {
         // Both sides are drawn, and the side the ray meets turns the normal: not the shading
         // normal's own direction, which near a smooth mesh's silhouette faces away from the eye
         // on triangles that face it, and flipped would be lit from inside.
-        let (depth, back) = triangle.hit(d, s);
-        if back {
+        if hit.back {
             world = -world;
         }
-        let depth = depth.unwrap_or(0.0);
+        let depth = hit.depth.unwrap_or(0.0);
         (world, self.view_to_world.transform_point3(d * depth))
     }
 
@@ -1053,7 +1046,7 @@ impl<'a> Prepared<'a> {
     /// The corner colours interpolated perspective-correctly where the ray `d` meets `item` at
     /// segment fraction `s`.
     fn albedo(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
-        self.albedo_with(item, triangle.barycentric(d, s))
+        self.albedo_with(item, triangle.ray_hit(d, s).weights)
     }
 
     /// The corner colours of `item` at barycentric `weights`.

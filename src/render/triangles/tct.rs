@@ -19,6 +19,19 @@ pub const MAX_DEPTH_PIECES: usize = 16;
 /// at 6·10⁻⁴ of the depth for a 400 px focal length.
 pub const DEPTH_TOLERANCE_PX: f64 = 0.25;
 
+/// Where a ray meets a triangle's plane at one time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayHit {
+    /// Perspective-correct barycentric weights: each corner's is the opposite edge's triple
+    /// product with the ray, normalized (a third each where the plane is edge-on to the ray).
+    pub weights: [f64; 3],
+    /// The depth along the ray; `None` when the plane is edge-on to it or not in front.
+    pub depth: Option<f64>,
+    /// Whether the ray meets the triangle's back: the side its winding's normal points away
+    /// from.
+    pub back: bool,
+}
+
 /// A triangle whose corners move linearly in camera space over one sub-segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MovingTriangle {
@@ -112,36 +125,35 @@ impl MovingTriangle {
     /// at s: (n·a)/(n·d). `None` when the plane is edge-on to the ray or not in front.
     #[must_use]
     pub fn depth(&self, d: DVec3, s: f64) -> Option<f64> {
-        self.hit(d, s).0
-    }
-
-    /// [`MovingTriangle::depth`], and whether the ray meets the triangle's back: the side its
-    /// winding's normal points away from.
-    #[must_use]
-    #[inline]
-    pub fn hit(&self, d: DVec3, s: f64) -> (Option<f64>, bool) {
         let [a, b, c] = self.at(s);
         let n = (b - a).cross(c - a);
-        let towards_ray = n.dot(d);
-        let depth = n.dot(a) / towards_ray;
-        (
-            (depth.is_finite() && depth > 0.0).then_some(depth),
-            towards_ray > 0.0,
-        )
+        let depth = n.dot(a) / n.dot(d);
+        (depth.is_finite() && depth > 0.0).then_some(depth)
     }
 
-    /// Perspective-correct barycentric weights of the ray `d`'s hit at s: each corner's weight
-    /// is the opposite edge's triple product, normalized.
+    /// Where the ray `d` (whose depth component is 1) meets the triangle's plane at s.
     #[must_use]
     #[inline]
-    pub fn barycentric(&self, d: DVec3, s: f64) -> [f64; 3] {
+    pub fn ray_hit(&self, d: DVec3, s: f64) -> RayHit {
         let [a, b, c] = self.at(s);
         let w = [d.dot(b.cross(c)), d.dot(c.cross(a)), d.dot(a.cross(b))];
+        // b × c + c × a + a × b = (b − a) × (c − a), the winding's normal: the weights' sum is
+        // its dot product with the ray.
         let sum = w[0] + w[1] + w[2];
-        if sum != 0.0 && sum.is_finite() {
-            w.map(|x| x / sum)
-        } else {
-            [1.0 / 3.0; 3]
+        if !(sum != 0.0 && sum.is_finite()) {
+            return RayHit {
+                weights: [1.0 / 3.0; 3],
+                depth: None,
+                back: sum > 0.0,
+            };
+        }
+        let weights = w.map(|x| x / sum);
+        // The weighted corners are the hit point itself, d times its depth.
+        let depth = -(a * weights[0] + b * weights[1] + c * weights[2]).z;
+        RayHit {
+            weights,
+            depth: (depth.is_finite() && depth > 0.0).then_some(depth),
+            back: sum > 0.0,
         }
     }
 
