@@ -68,6 +68,39 @@ fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>
     cuts.len() == before && f0.max(fm).max(f1) <= 0.0
 }
 
+/// Each corner's straight path over the sub-segment [t0, t1], as its positions at the two ends
+/// (`positions_at` gives every corner's at a time): where the true path is straight, its chord;
+/// where it bends, the least-squares line through it over the sub-segment, found with three
+/// Gauss–Legendre points. A chord meets an arc at its ends and misses it by the sagitta M at its
+/// middle (RMS 0.73 M over the sub-segment); the fitted line lies M/3 outside it at the middle and
+/// 2M/3 inside at the ends, RMS 0.30 M, so the same sub-segments follow a turn 2.4 times as
+/// closely. Consecutive lines then meet only nearly (both move outward alike at a shared end);
+/// a jump at one instant has no weight in time.
+fn fitted_paths(
+    positions_at: impl Fn(f64) -> Vec<DVec3>,
+    [t0, t1]: [f64; 2],
+) -> (Vec<DVec3>, Vec<DVec3>) {
+    let (mut start, mut end) = (positions_at(t0), positions_at(t1));
+    let nodes =
+        GAUSS_LEGENDRE_3.map(|(x, w)| (x, w, positions_at(t0 + (t1 - t0) * 0.5 * (1.0 + x))));
+    for (v, (first, last)) in start.iter_mut().zip(&mut end).enumerate() {
+        // The middle node is the path's middle: straight where it is the chord's, to rounding.
+        let middle = nodes[1].2[v];
+        if (middle - 0.5 * (*first + *last)).length() <= 1e-12 * first.length().max(last.length()) {
+            continue;
+        }
+        // The line mean + slope (u − ½) with u in [0, 1]: mean = ∫p du, slope = 12∫p (u − ½) du,
+        // and u − ½ = x/2 at node x of weight w/2.
+        let (mut mean, mut slope) = (DVec3::ZERO, DVec3::ZERO);
+        for (x, w, positions) in &nodes {
+            mean += 0.5 * w * positions[v];
+            slope += 3.0 * w * x * positions[v];
+        }
+        (*first, *last) = (mean - 0.5 * slope, mean + 0.5 * slope);
+    }
+    (start, end)
+}
+
 /// What drawing triangles did, for `--explain`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TriangleStats {
@@ -289,11 +322,11 @@ impl<'a> Prepared<'a> {
             let segments: Vec<Segment> = segments
                 .into_iter()
                 .map(|([t0, t1], time)| {
-                    let start = corners_at(t0);
-                    let end = if t1 == t0 {
-                        start.clone()
+                    let (start, end) = if t1 == t0 {
+                        let at = corners_at(t0);
+                        (at.clone(), at)
                     } else {
-                        corners_at(t1)
+                        fitted_paths(corners_at, [t0, t1])
                     };
                     Segment {
                         rotation: [t0, t1].map(|t| object.motion.pose_at(t).rotation_matrix()),
@@ -1462,6 +1495,33 @@ impl Scratch {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_corner_on_an_arc_follows_its_least_squares_line_and_a_straight_path_keeps_its_chord() {
+        // Corner 0 turns 30° on a unit circle, whose chord misses it by the sagitta M at its
+        // middle; corner 1 moves on a straight line.
+        let angle = 30f64.to_radians();
+        let arc = |u: f64| DVec3::new((angle * u).cos(), (angle * u).sin(), -5.0);
+        let line = |u: f64| DVec3::new(u, 2.0 * u, -3.0);
+        let (start, end) = fitted_paths(|t| vec![arc(t), line(t)], [0.0, 1.0]);
+        assert_eq!((start[1], end[1]), (line(0.0), line(1.0)));
+        let sagitta = 1.0 - (0.5 * angle).cos();
+        // RMS distance at equal times over the sub-segment: 0.73 M for the chord, 0.30 M for
+        // the fitted line.
+        let rms = |from: DVec3, to: DVec3| {
+            let n = 1000;
+            let sum: f64 = (0..n)
+                .map(|i| {
+                    let u = (i as f64 + 0.5) / n as f64;
+                    from.lerp(to, u).distance_squared(arc(u))
+                })
+                .sum();
+            (sum / n as f64).sqrt() / sagitta
+        };
+        let (chord, fitted) = (rms(arc(0.0), arc(1.0)), rms(start[0], end[0]));
+        assert!((chord - 0.73).abs() < 0.01, "{chord}");
+        assert!((fitted - 0.30).abs() < 0.01, "{fitted}");
+    }
 
     #[test]
     fn a_screen_hull_bounds_each_band_of_rows_by_its_edges() {
