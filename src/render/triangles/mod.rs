@@ -760,6 +760,7 @@ impl<'a> Prepared<'a> {
         if self.scene.lighting.is_lit() {
             let item = &self.items[run[0].item as usize];
             let own = self.shadow_id(item);
+            let ray = self.view_to_world.transform_vector3(d);
             let mut maps = self.shadows.iter();
             for source in &self.sources {
                 // N·L at each piece's ends (shared with its neighbours) and middle.
@@ -777,7 +778,24 @@ impl<'a> Prepared<'a> {
                 }
                 let map = maps.next()?;
                 // Each piece on its own path and time, every end placed once with its normal.
+                // Every point of the run lies on the sample's ray: its path in the map is the
+                // straight one between its nearest and farthest ends, and none of it lies deeper
+                // from the light than they do. One walk with that depth as the limit (no bias:
+                // stricter than any piece's) settles most runs; the rest go piece by piece.
+                let lit_as_one = || {
+                    let along = |end: &&SurfacePoint| end.point.dot(ray);
+                    let nearest = ends.iter().min_by(|a, b| along(a).total_cmp(&along(b)))?;
+                    let farthest = ends.iter().max_by(|a, b| along(a).total_cmp(&along(b)))?;
+                    let (a, depth_a) = map.locate(nearest.point)?;
+                    let (b, depth_b) = map.locate(farthest.point)?;
+                    let limit = depth_a.max(depth_b);
+                    map.surely_lit_between((a, limit), (b, limit), span, own)
+                        .then_some(())
+                };
                 let lit = || {
+                    if lit_as_one().is_some() {
+                        return Some(());
+                    }
                     let mut from = map.place(ends[0].point, ends[0].normal)?;
                     for i in 0..run.len() {
                         let to = map.place(ends[i + 1].point, ends[i + 1].normal)?;
