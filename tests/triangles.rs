@@ -471,6 +471,37 @@ fn a_floor_moving_in_depth_under_a_still_occluder_is_shadowed_for_the_closed_for
 }
 
 #[test]
+fn a_floor_turning_under_a_still_occluder_stays_in_its_shadow_over_every_sub_segment() {
+    // The floor of the sliding-occluder test turns 30° about the vertical through (1.5, 0): the
+    // point (0, 0) under the centre pixel stays where it is and on one triangle, which crosses
+    // it over many sub-segments (a run of pieces). The still unit square centred at (1, 0, 1)
+    // shadows it throughout under light from (1, 0, 1): ambient only. Without the square, lit.
+    let turned = |degrees: f64| Pose {
+        rotation: DQuat::from_rotation_z(degrees.to_radians()),
+        ..at(1.5, 0.0, 0.0)
+    };
+    let floor = object(
+        "floor",
+        &square(8.0),
+        [1.0; 3],
+        &[(0.0, turned(0.0)), (1.0, turned(30.0))],
+    );
+    let open = lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8).with_object(floor);
+    let shaded = open.clone().with_object(object(
+        "occluder",
+        &square(1.0),
+        [0.0; 3],
+        &[(0.0, at(1.0, 0.0, 1.0))],
+    ));
+    let out = render(&shaded, &Method::ANALYTIC);
+    let p = pixel(&out.image, 16, 16);
+    assert!((f64::from(p[0]) - 0.2).abs() < 1e-3, "{p:?}");
+    let lit_value = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
+    let p = pixel(&render(&open, &Method::ANALYTIC).image, 16, 16);
+    assert!((f64::from(p[0]) - lit_value).abs() < 1e-3, "{p:?}");
+}
+
+#[test]
 fn more_shadowed_lights_than_the_cap_are_refused_by_name() {
     use streak::render::MAX_SHADOWED_LIGHTS;
     let lights = |count: usize| {
