@@ -15,6 +15,7 @@
 //! static one's ([`ShadowMap::traced_breakpoints`]).
 
 use glam::{DVec2, DVec3};
+use rayon::prelude::*;
 
 use super::intervals::Interval;
 use crate::math::floor_to_i64;
@@ -244,18 +245,26 @@ impl ShadowMap {
             occluders,
             tiles_x,
             nearest: Vec::new(),
-            nearest_in_tile: vec![Nearest::NONE; occluders_tiles],
+            nearest_in_tile: Vec::new(),
         };
         let side = map.occluders.camera.width;
-        map.nearest = (0..side * side)
-            .map(|i| {
-                let (x, y) = (i % side, i / side);
-                let nearest = Nearest::of(map.texel(i64::from(x), i64::from(y)));
-                let tile = map.tile_of(x, y);
-                map.nearest_in_tile[tile] = map.nearest_in_tile[tile].merge(nearest);
-                nearest
+        let nearest: Vec<Nearest> = (0..side * side)
+            .into_par_iter()
+            .map(|i| Nearest::of(map.texel(i64::from(i % side), i64::from(i / side))))
+            .collect();
+        let tile_px = crate::raster::TILE_PX;
+        let nearest_in_tile = (0..occluders_tiles as u32)
+            .into_par_iter()
+            .map(|tile| {
+                let (x0, y0) = (tile % tiles_x * tile_px, tile / tiles_x * tile_px);
+                (y0..(y0 + tile_px).min(side))
+                    .flat_map(|y| (x0..(x0 + tile_px).min(side)).map(move |x| (x, y)))
+                    .map(|(x, y)| nearest[(y * side + x) as usize])
+                    .fold(Nearest::NONE, Nearest::merge)
             })
             .collect();
+        map.nearest = nearest;
+        map.nearest_in_tile = nearest_in_tile;
         map
     }
 
