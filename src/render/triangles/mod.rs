@@ -276,7 +276,13 @@ pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
         .shadow_cameras
         .iter()
         .map(|camera| {
-            ShadowMap::new(Prepared::new(plan, camera.clone(), exposure, Vec::new()).occluders())
+            let map = ShadowMap::new(
+                Prepared::new(plan, camera.clone(), exposure, Vec::new()).occluders(),
+            );
+            match exposure {
+                Exposure::Shutter => map.summarised(),
+                Exposure::Instant(_) => map,
+            }
         })
         .collect();
     Prepared::new(plan, scene.camera.clone(), exposure, shadows).render()

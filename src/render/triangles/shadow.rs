@@ -236,24 +236,32 @@ pub struct ShadowMap {
 }
 
 impl ShadowMap {
-    /// The map of `occluders`.
+    /// The map of `occluders`, ready for [`ShadowMap::visibility`] lookups; for
+    /// [`ShadowMap::surely_lit`], [`ShadowMap::summarised`].
     #[must_use]
     pub fn new(occluders: Occluders) -> ShadowMap {
         let tiles_x = occluders.camera.width.div_ceil(crate::raster::TILE_PX);
-        let occluders_tiles = occluders.tiles.len();
-        let mut map = ShadowMap {
+        ShadowMap {
             occluders,
             tiles_x,
             nearest: Vec::new(),
             nearest_in_tile: Vec::new(),
-        };
-        let side = map.occluders.camera.width;
+        }
+    }
+
+    /// The map with each texel's and each tile's nearest occluders over all time, which the
+    /// lit-for-sure tests read. Over a shutter only: at an instant receivers look up their
+    /// visibility alone, and a reference frame would pay for a million texels it never reads.
+    #[must_use]
+    pub fn summarised(mut self) -> ShadowMap {
+        let side = self.occluders.camera.width;
+        let map = &self;
         let nearest: Vec<Nearest> = (0..side * side)
             .into_par_iter()
             .map(|i| Nearest::of(map.texel(i64::from(i % side), i64::from(i / side))))
             .collect();
-        let tile_px = crate::raster::TILE_PX;
-        let nearest_in_tile = (0..occluders_tiles as u32)
+        let (tile_px, tiles_x) = (crate::raster::TILE_PX, self.tiles_x);
+        let nearest_in_tile = (0..self.occluders.tiles.len() as u32)
             .into_par_iter()
             .map(|tile| {
                 let (x0, y0) = (tile % tiles_x * tile_px, tile / tiles_x * tile_px);
@@ -263,9 +271,9 @@ impl ShadowMap {
                     .fold(Nearest::NONE, Nearest::merge)
             })
             .collect();
-        map.nearest = nearest;
-        map.nearest_in_tile = nearest_in_tile;
-        map
+        self.nearest = nearest;
+        self.nearest_in_tile = nearest_in_tile;
+        self
     }
 
     /// The tile holding texel (x, y), which lies in the map.
@@ -351,7 +359,8 @@ impl ShadowMap {
         span: [f64; 2],
         own: (u32, u32),
     ) -> bool {
-        if !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
+        // Not summarised (a map of an instant): nothing is known for sure.
+        if self.nearest.is_empty() || !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
             return false;
         }
         let limit = limit_a.max(limit_b);
@@ -662,6 +671,7 @@ mod tests {
             tiles: vec![(starts, vec![occluder])],
             left_empty: 0,
         })
+        .summarised()
     }
 
     /// The world point that falls on texel coordinates (x, y) at depth 5.
