@@ -72,9 +72,9 @@ fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>
 /// (`positions_at` gives every corner's at a time): where the true path is straight, its chord;
 /// where it bends, the least-squares line through it over the sub-segment, found with three
 /// Gauss–Legendre points. A chord meets an arc at its ends and misses it by the sagitta M at its
-/// middle (RMS 0.73 M over the sub-segment); the fitted line lies M/3 outside it at the middle and
-/// 2M/3 inside at the ends, RMS 0.30 M, so the same sub-segments follow a turn 2.4 times as
-/// closely. Consecutive lines then meet only nearly (both move outward alike at a shared end);
+/// middle (RMS 0.73 M over the sub-segment); the fitted line is that chord moved outward by 2M/3,
+/// so it lies M/3 inside the arc at the middle and 2M/3 outside it at the ends, RMS 0.30 M: the
+/// same sub-segments follow a turn 2.4 times as closely. Consecutive lines then meet only nearly (both move outward alike at a shared end);
 /// a jump at one instant has no weight in time.
 fn fitted_paths(
     positions_at: impl Fn(f64) -> Vec<DVec3>,
@@ -766,7 +766,15 @@ impl<'a> Prepared<'a> {
         if self.scene.lighting.is_lit() {
             let item = &self.items[run[0].item as usize];
             let own = self.shadow_id(item);
-            let ray = self.view_to_world.transform_vector3(d);
+            // Every point of the run lies on the sample's ray: its path in a shadow map is the
+            // straight one between its nearest and farthest ends, and none of it lies deeper
+            // from the light than they do.
+            let extremes = (!self.shadows.is_empty()).then(|| {
+                let ray = self.view_to_world.transform_vector3(d);
+                let along = |end: &&SurfacePoint| end.point.dot(ray);
+                let nearest = ends.iter().min_by(|a, b| along(a).total_cmp(&along(b)));
+                nearest.zip(ends.iter().max_by(|a, b| along(a).total_cmp(&along(b))))
+            });
             let mut maps = self.shadows.iter();
             for source in &self.sources {
                 // N·L at each piece's ends (shared with its neighbours) and middle.
@@ -783,21 +791,18 @@ impl<'a> Prepared<'a> {
                     continue;
                 }
                 let map = maps.next()?;
-                // Each piece on its own path and time, every end placed once with its normal.
-                // Every point of the run lies on the sample's ray: its path in the map is the
-                // straight one between its nearest and farthest ends, and none of it lies deeper
-                // from the light than they do. One walk with that depth as the limit (no bias:
-                // stricter than any piece's) settles most runs; the rest go piece by piece.
+                // One walk along the run's path with its deepest end's depth as the limit (no
+                // bias: stricter than any piece's) settles most runs.
                 let lit_as_one = || {
-                    let along = |end: &&SurfacePoint| end.point.dot(ray);
-                    let nearest = ends.iter().min_by(|a, b| along(a).total_cmp(&along(b)))?;
-                    let farthest = ends.iter().max_by(|a, b| along(a).total_cmp(&along(b)))?;
+                    let (nearest, farthest) = extremes.flatten()?;
                     let (a, depth_a) = map.locate(nearest.point)?;
                     let (b, depth_b) = map.locate(farthest.point)?;
                     let limit = depth_a.max(depth_b);
                     map.surely_lit_between((a, limit), (b, limit), span, own)
                         .then_some(())
                 };
+                // The rest go piece by piece, each on its own path and time, every end placed
+                // once with its normal.
                 let lit = || {
                     if lit_as_one().is_some() {
                         return Some(());

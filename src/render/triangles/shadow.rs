@@ -398,7 +398,7 @@ impl ShadowMap {
         if self.surely_lit_within([x0, y0, x1, y1], limit, own) {
             return true;
         }
-        for row in index(lo.y).max(0)..(index(hi.y) + 2).min(side) {
+        for row in i64::from(y0)..i64::from(y1) {
             let (xa, xb) = (x_at(row as f64 - 1.0, 0.0), x_at(row as f64 + 1.0, 1.0));
             for x in index(xa.min(xb)).max(0)..(index(xa.max(xb)) + 2).min(side) {
                 if !lit(x, row) {
