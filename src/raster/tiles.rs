@@ -126,7 +126,8 @@ impl TileLists {
         TileLists { starts, entries }
     }
 
-    /// The items binned to `tile`.
+    /// The items binned to `tile`, in ascending order (each chunk's pairs are made, and
+    /// counted out, in item order).
     pub(crate) fn list(&self, tile: usize) -> &[u32] {
         &self.entries[self.starts[tile]..self.starts[tile + 1]]
     }

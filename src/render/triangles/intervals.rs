@@ -16,6 +16,9 @@ pub struct Interval {
     pub depth: [f64; 2],
     /// What covers the sample then (the renderer's triangle item).
     pub item: u32,
+    /// Whether the depth strays from the line between the ends by more than the renderer's
+    /// tolerance: held as that line until something needs its linear pieces.
+    pub bends: bool,
 }
 
 impl Interval {
@@ -46,17 +49,31 @@ pub struct ResolveScratch {
     events: Vec<f64>,
     by_start: Vec<u32>,
     active: Vec<u32>,
+    pieces: Vec<Interval>,
 }
 
-/// The visible pieces of `intervals` (each an interval over which its item is nearest), in time order, appended to `out`; adjacent pieces of the
-/// same item are joined (Gribel's compression of one surface's pieces).
+/// A list's interval as it is: for lists whose depths are already linear pieces.
+pub fn as_is(interval: &Interval, out: &mut Vec<Interval>) {
+    out.push(*interval);
+}
+
+/// The visible pieces of `intervals` (each an interval over which its item is nearest), in time
+/// order, appended to `out`; adjacent pieces of the same item are joined (Gribel's compression of
+/// one surface's pieces). Where intervals overlap in time, `pieces` first cuts each into the
+/// linear depth pieces the sweep compares (a list in time order without overlaps needs no depth,
+/// and is returned as it is).
 ///
 /// The interval ends cut the exposure into spans over which the set of active pieces is fixed
 /// (kept incrementally as the sweep passes starts and ends), and each piece is a line in time:
 /// their lower envelope is found by starting from the nearest at the span's start and stepping to
 /// the earliest line that crosses below the current one, so a span with k active pieces costs
 /// O(k²) and yields at most k visible pieces.
-pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut Vec<Interval>) {
+pub fn resolve(
+    intervals: &[Interval],
+    scratch: &mut ResolveScratch,
+    out: &mut Vec<Interval>,
+    pieces: impl Fn(&Interval, &mut Vec<Interval>),
+) {
     if intervals
         .windows(2)
         .all(|pair| pair[0].t[1] <= pair[1].t[0])
@@ -73,7 +90,13 @@ pub fn resolve(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut V
         events,
         by_start,
         active,
+        pieces: cut,
     } = scratch;
+    cut.clear();
+    for interval in intervals {
+        pieces(interval, cut);
+    }
+    let intervals = &cut[..];
     events.clear();
     for i in intervals {
         events.extend_from_slice(&i.t);
@@ -150,6 +173,7 @@ fn push_visible(out: &mut Vec<Interval>, first: usize, interval: &Interval, [t0,
             if last.item == interval.item && last.t[1] == t0 && straight {
                 last.t[1] = t1;
                 last.depth[1] = depth[1];
+                last.bends |= interval.bends;
                 return;
             }
         }
@@ -158,6 +182,7 @@ fn push_visible(out: &mut Vec<Interval>, first: usize, interval: &Interval, [t0,
         t: [t0, t1],
         depth,
         item: interval.item,
+        bends: interval.bends,
     });
 }
 
@@ -167,7 +192,7 @@ mod tests {
 
     fn resolved(intervals: &[Interval]) -> Vec<Interval> {
         let mut out = Vec::new();
-        resolve(intervals, &mut ResolveScratch::default(), &mut out);
+        resolve(intervals, &mut ResolveScratch::default(), &mut out, as_is);
         out
     }
 
@@ -175,7 +200,12 @@ mod tests {
     fn a_list_in_time_order_resolves_as_the_sweep_resolves_it_shuffled() {
         // One surface over three sub-segments (the first two on one line, so joined), an empty
         // piece, and another surface after a gap.
-        let piece = |t: [f64; 2], depth: [f64; 2], item: u32| Interval { t, depth, item };
+        let piece = |t: [f64; 2], depth: [f64; 2], item: u32| Interval {
+            t,
+            depth,
+            item,
+            bends: false,
+        };
         let ordered = [
             piece([0.0, 0.25], [1.0, 1.5], 0),
             piece([0.25, 0.5], [1.5, 2.0], 0),
@@ -192,6 +222,53 @@ mod tests {
     }
 
     #[test]
+    fn overlapping_intervals_are_swept_on_their_depth_pieces_and_a_lone_one_is_kept_whole() {
+        // A surface held as the line from depth 1 to 3 whose depth bends through 1.4 at t = 0.5,
+        // and a still one at depth 2 from t = 0.2: the line would cross 2 at t = 0.5, the bent
+        // depth crosses it at 0.5 + 0.5 · 0.6 / 1.6 = 0.6875.
+        let bent = Interval {
+            t: [0.0, 1.0],
+            depth: [1.0, 3.0],
+            item: 0,
+            bends: true,
+        };
+        let still = Interval {
+            t: [0.2, 1.0],
+            depth: [2.0, 2.0],
+            item: 1,
+            bends: false,
+        };
+        let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
+            if interval.bends {
+                for (t, depth) in [([0.0, 0.5], [1.0, 1.4]), ([0.5, 1.0], [1.4, 3.0])] {
+                    out.push(Interval {
+                        t,
+                        depth,
+                        bends: false,
+                        ..*interval
+                    });
+                }
+            } else {
+                out.push(*interval);
+            }
+        };
+        let mut out = Vec::new();
+        resolve(
+            &[still, bent],
+            &mut ResolveScratch::default(),
+            &mut out,
+            pieces,
+        );
+        assert_eq!(out.len(), 3, "{out:?}");
+        assert_eq!(out.iter().map(|p| p.item).collect::<Vec<_>>(), [0, 0, 1]);
+        assert!((out[1].t[1] - 0.6875).abs() < 1e-12 && out[2].t == [out[1].t[1], 1.0]);
+        // Alone, it overlaps nothing: no depth is compared, and it stays one line.
+        out.clear();
+        resolve(&[bent], &mut ResolveScratch::default(), &mut out, pieces);
+        assert_eq!(out, [bent]);
+    }
+
+    #[test]
     fn two_surfaces_crossing_in_depth_each_get_their_visible_time() {
         // Palmér Fig. 2.1, with a crossing: blue recedes from depth 1 to 3 over [0, 1]; red
         // stays at depth 2 from t = 0.2 on. Blue is nearer until it passes depth 2 at t = 0.5.
@@ -199,11 +276,13 @@ mod tests {
             t: [0.0, 1.0],
             depth: [1.0, 3.0],
             item: 0,
+            bends: false,
         };
         let red = Interval {
             t: [0.2, 1.0],
             depth: [2.0, 2.0],
             item: 1,
+            bends: false,
         };
         for list in [[blue, red], [red, blue]] {
             let out = resolved(&list);
@@ -220,16 +299,19 @@ mod tests {
             t: [0.0, 0.4],
             depth: [1.0, 1.0],
             item: 0,
+            bends: false,
         };
         let far = Interval {
             t: [0.1, 0.3],
             depth: [5.0, 5.0],
             item: 1,
+            bends: false,
         };
         let late = Interval {
             t: [0.6, 0.9],
             depth: [5.0, 4.0],
             item: 2,
+            bends: false,
         };
         let out = resolved(&[far, late, near]);
         assert_eq!(out.len(), 2, "{out:?}");

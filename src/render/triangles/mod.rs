@@ -23,10 +23,10 @@ use crate::raster::TILE_PX;
 use crate::raster::{TileGrid, TileLists};
 use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMesh};
-use intervals::{resolve, Interval, ResolveScratch};
+use intervals::{as_is, resolve, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
 use shadow::{Occluder, Occluders, Receiver, ShadowMap};
-use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayHit};
+use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth, RayHit};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
 /// render may hold.
@@ -253,6 +253,9 @@ struct Prepared<'a> {
     behind_near: usize,
     /// Whether some item is behind the near plane part of its segment.
     near_clipped: bool,
+    /// Whether surfels are drawn behind these triangles, which [`TriangleImage::hidden_beyond`]
+    /// leaves out.
+    occludes_surfels: bool,
 }
 
 /// An image of the triangle objects and where they hide what lies behind.
@@ -365,6 +368,7 @@ impl<'a> Prepared<'a> {
             items: Vec::new(),
             behind_near: 0,
             near_clipped: false,
+            occludes_surfels: (0..scene.objects.len()).any(|index| !plan.draws_triangles(index)),
         };
         (prepared.items, prepared.behind_near, prepared.near_clipped) = prepared.make_items(count);
         prepared
@@ -525,13 +529,14 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// Insert every item of a tile into its samples: intervals (`Shutter`) or the nearest
-    /// (`Instant`).
+    /// Insert every item of a tile into its samples: intervals (`Shutter`, their depth as
+    /// `depth` says) or the nearest (`Instant`).
     fn fill_tile(
         &self,
         list: &[u32],
         [x0, y0, x1, y1]: [u32; 4],
         offsets: &[[f64; 2]],
+        depth: DepthPieces,
         scratch: &mut Scratch,
         stats: &mut TriangleStats,
     ) {
@@ -547,9 +552,15 @@ impl<'a> Prepared<'a> {
         let [ox1, oy1] = offsets.iter().fold([f64::NEG_INFINITY; 2], |m, o| {
             [m[0].max(o[0]), m[1].max(o[1])]
         });
+        scratch.depths.items.clear();
+        scratch.depths.functions.clear();
         for &index in list {
             let item = &self.items[index as usize];
             let placed = self.triangle(item);
+            if self.exposure == Exposure::Shutter {
+                scratch.depths.items.push(index);
+                scratch.depths.functions.push(placed.depth);
+            }
             let [ix0, iy0, ix1, iy1] = item.bounds;
             // A moving triangle covers samples within the hull of its corners' screen paths
             // only; the rest of its bounds are skipped a row at a time.
@@ -575,7 +586,14 @@ impl<'a> Prepared<'a> {
                         let sample = pixel * per_pixel + k;
                         match self.exposure {
                             Exposure::Instant(_) => scratch.nearer(sample, &placed, d, index),
-                            Exposure::Shutter => scratch.insert(sample, &placed, d, index, stats),
+                            Exposure::Shutter => {
+                                // Only a full list's resolve cuts intervals here, rarely: their
+                                // items' depth functions are worked out again.
+                                let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
+                                    self.depth_pieces_of(interval, d, &TileDepths::default(), out);
+                                };
+                                scratch.insert(sample, &placed, d, index, depth, &pieces, stats);
+                            }
                         }
                     }
                 }
@@ -592,7 +610,7 @@ impl<'a> Prepared<'a> {
         scratch: &mut Scratch,
         stats: &mut TriangleStats,
     ) {
-        self.fill_tile(list, bounds, offsets, scratch, stats);
+        self.fill_tile(list, bounds, offsets, DepthPieces::OnDemand, scratch, stats);
         let camera = &self.camera;
         let w = (x1 - x0) as usize;
         let per_pixel = offsets.len();
@@ -641,12 +659,14 @@ impl<'a> Prepared<'a> {
                     lists,
                     resolving,
                     visible,
-                    cuts,
-                    ends,
+                    shading,
+                    depths,
                     ..
                 } = scratch;
                 visible.clear();
-                resolve(&lists[sample], resolving, visible);
+                resolve(&lists[sample], resolving, visible, |interval, out| {
+                    self.depth_pieces_of(interval, d, depths, out);
+                });
                 let shutter = &self.scene.shutter;
                 let mut colour = [0.0f64; 3];
                 let mut covered = 0.0;
@@ -661,13 +681,21 @@ impl<'a> Prepared<'a> {
                     if !(mass > 0.0) {
                         continue;
                     }
-                    let mean = self.run_colour(run, d, cuts, ends, stats);
+                    let mean = self.run_colour(run, d, shading, depths, stats);
                     for c in 0..3 {
                         colour[c] += mass * mean[c];
                     }
                     covered += mass;
                     for piece in run {
-                        farthest = farthest.max(piece.depth[0].max(piece.depth[1]));
+                        let ends = piece.depth[0].max(piece.depth[1]);
+                        // Surfels behind this depth are left out: past the line's ends where the
+                        // depth bends.
+                        let deepest = if self.occludes_surfels {
+                            (self.depth_range(piece, d, depths)).map_or(ends, |range| range[1])
+                        } else {
+                            ends
+                        };
+                        farthest = farthest.max(deepest);
                     }
                 }
                 let uncovered = (1.0 - covered).max(0.0);
@@ -686,57 +714,69 @@ impl<'a> Prepared<'a> {
 
     /// Mean colour of a run of visible pieces of one triangle, back to back in time (one per
     /// sub-segment it crosses), weighted by the shutter: as one where no shadow can change along
-    /// it ([`Prepared::lit_run_colour`]), else piece by piece.
+    /// it ([`Prepared::lit_run_colour`]), else each of its linear depth pieces on its own (as is
+    /// a lone piece whose depth is one line).
     fn run_colour(
         &self,
         run: &[Interval],
         d: DVec3,
-        cuts: &mut Vec<f64>,
-        ends: &mut Vec<SurfacePoint>,
+        work: &mut ShadingScratch,
+        depths: &TileDepths,
         stats: &mut TriangleStats,
     ) -> [f64; 3] {
         stats.runs += 1;
-        if let [piece] = run {
+        if let [piece @ Interval { bends: false, .. }] = run {
             stats.pieces += 1;
-            return self.piece_colour(piece, d, cuts, stats);
+            return self.piece_colour(piece, d, &mut work.cuts, stats);
         }
-        if let Some(colour) = self.lit_run_colour(run, d, cuts, ends) {
+        if let Some(colour) = self.lit_run_colour(run, d, work, depths) {
             stats.pieces += run.len();
-            stats.joined_runs += 1;
+            stats.joined_runs += usize::from(run.len() > 1);
             return colour;
         }
-        let (mut sum, mut mass) = ([0.0; 3], 0.0);
+        let mut pieces = std::mem::take(&mut work.pieces);
+        pieces.clear();
         for piece in run {
+            self.depth_pieces_of(piece, d, depths, &mut pieces);
+        }
+        let (mut sum, mut mass) = ([0.0; 3], 0.0);
+        for piece in &pieces {
             let m = self.scene.shutter.mass(piece.t[0], piece.t[1]);
             if !(m > 0.0) {
                 continue;
             }
             stats.pieces += 1;
-            let mean = self.piece_colour(piece, d, cuts, stats);
+            let mean = self.piece_colour(piece, d, &mut work.cuts, stats);
             for c in 0..3 {
                 sum[c] += m * mean[c];
             }
             mass += m;
         }
+        work.pieces = pieces;
         sum.map(|c| if mass > 0.0 { c / mass } else { 0.0 })
     }
 
-    /// The mean colour of a run of several pieces when no shadow map can change its light: it
-    /// faces away from each shadowed light all along, or each of its pieces is lit for sure
-    /// ([`ShadowMap::surely_lit_between`] its ends, each biased for its own normal). The
-    /// surface (normal, point, colour) is found exactly at every piece's ends and interpolated
-    /// linearly within each piece, as [`Prepared::piece_colour`] does; the run is cut where it
-    /// turns towards or away from a light (eq. 2.5, per piece) and integrated at three
-    /// Gauss–Legendre times per cut piece, not per sub-segment: the light changes smoothly
+    /// The mean colour of a run of pieces when no shadow map can change its light: it faces away
+    /// from each shadowed light all along, or is lit for sure all along its stretch of the
+    /// sample's ray (between the depths [`Prepared::depth_range`] bounds), or each piece on its
+    /// own path ([`ShadowMap::surely_lit_between`]). The surface (normal, point, colour) is found
+    /// exactly at every piece's ends and interpolated linearly within each piece, as
+    /// [`Prepared::piece_colour`] does (the point stays on the ray: a bend of the depth within a
+    /// piece moves it along the ray only, which a directional light does not see); the run is
+    /// cut where it turns towards or away from a light (eq. 2.5, per piece) and integrated at
+    /// three Gauss–Legendre times per cut piece, not per sub-segment: the light changes smoothly
     /// across a sub-segment's end, where the pose is continuous. `None` when a shadow may fall
     /// on the run.
     fn lit_run_colour(
         &self,
         run: &[Interval],
         d: DVec3,
-        cuts: &mut Vec<f64>,
-        ends: &mut Vec<SurfacePoint>,
+        work: &mut ShadingScratch,
+        depths: &TileDepths,
     ) -> Option<[f64; 3]> {
+        let ShadingScratch {
+            cuts, ends, ranges, ..
+        } = work;
         ends.clear();
         for (i, piece) in run.iter().enumerate() {
             let item = &self.items[piece.item as usize];
@@ -766,15 +806,19 @@ impl<'a> Prepared<'a> {
         if self.scene.lighting.is_lit() {
             let item = &self.items[run[0].item as usize];
             let own = self.shadow_id(item);
-            // Every point of the run lies on the sample's ray: its path in a shadow map is the
-            // straight one between its nearest and farthest ends, and none of it lies deeper
-            // from the light than they do.
-            let extremes = (!self.shadows.is_empty()).then(|| {
-                let ray = self.view_to_world.transform_vector3(d);
-                let along = |end: &&SurfacePoint| end.point.dot(ray);
-                let nearest = ends.iter().min_by(|a, b| along(a).total_cmp(&along(b)));
-                nearest.zip(ends.iter().max_by(|a, b| along(a).total_cmp(&along(b))))
-            });
+            // Every point of the run lies on the sample's ray, each piece's between the depths its
+            // range bounds: its path in a shadow map is the straight one between the nearest and
+            // the farthest, and none of it lies deeper from the light than they do.
+            ranges.clear();
+            if !self.shadows.is_empty() {
+                ranges.extend(run.iter().map(|piece| self.depth_range(piece, d, depths)));
+            }
+            let whole = ranges
+                .iter()
+                .try_fold([f64::INFINITY, 0.0], |[lo, hi], range| {
+                    range.map(|[a, b]| [lo.min(a), hi.max(b)])
+                });
+            let on_ray = |depth: f64| self.view_to_world.transform_point3(d * depth);
             let mut maps = self.shadows.iter();
             for source in &self.sources {
                 // N·L at each piece's ends (shared with its neighbours) and middle.
@@ -791,27 +835,31 @@ impl<'a> Prepared<'a> {
                     continue;
                 }
                 let map = maps.next()?;
-                // One walk along the run's path with its deepest end's depth as the limit (no
-                // bias: stricter than any piece's) settles most runs.
-                let lit_as_one = || {
-                    let (nearest, farthest) = extremes.flatten()?;
-                    let (a, depth_a) = map.locate(nearest.point)?;
-                    let (b, depth_b) = map.locate(farthest.point)?;
+                // A walk along a stretch of the ray over a time span, with the depth from the light
+                // of its deeper end as the limit (no bias: stricter than any point's).
+                let lit_along = |[nearest, farthest]: [f64; 2], span: [f64; 2]| {
+                    let (a, depth_a) = map.locate(on_ray(nearest))?;
+                    let (b, depth_b) = map.locate(on_ray(farthest))?;
                     let limit = depth_a.max(depth_b);
                     map.surely_lit_between((a, limit), (b, limit), span, own)
                         .then_some(())
                 };
-                // The rest go piece by piece, each on its own path and time, every end placed
-                // once with its normal.
+                // One walk for the whole run settles most; the rest go piece by piece, each on
+                // its own path and time: between its ends, each placed once with its normal, or
+                // where it bends, along its stretch of the ray.
                 let lit = || {
-                    if lit_as_one().is_some() {
+                    if lit_along(whole?, span).is_some() {
                         return Some(());
                     }
                     let mut from = map.place(ends[0].point, ends[0].normal)?;
-                    for i in 0..run.len() {
+                    for (i, piece) in run.iter().enumerate() {
                         let to = map.place(ends[i + 1].point, ends[i + 1].normal)?;
-                        map.surely_lit_between(from, to, [time(i), time(i + 1)], own)
-                            .then_some(())?;
+                        if piece.bends {
+                            lit_along(ranges[i]?, piece.t)?;
+                        } else {
+                            map.surely_lit_between(from, to, [time(i), time(i + 1)], own)
+                                .then_some(())?;
+                        }
                         from = to;
                     }
                     Some(())
@@ -1034,6 +1082,74 @@ impl<'a> Prepared<'a> {
         }
     }
 
+    /// `interval` of the ray `d` as the linear depth pieces [`DepthPieces::AtOnce`] would have
+    /// inserted, appended to `out`, its ends kept exactly. A still triangle's depth is one line;
+    /// where the depth is undefined inside the interval, it stays the line between its ends.
+    fn depth_pieces_of(
+        &self,
+        interval: &Interval,
+        d: DVec3,
+        depths: &TileDepths,
+        out: &mut Vec<Interval>,
+    ) {
+        let item = &self.items[interval.item as usize];
+        let segment = self.segment(item);
+        let [t0, t1] = segment.time;
+        if !interval.bends || segment.still || !(t1 > t0) {
+            out.push(*interval);
+            return;
+        }
+        let along = self.depth_along(interval.item, d, depths);
+        let span = interval.t.map(|t| (t - t0) / (t1 - t0));
+        let tolerance = tct::DEPTH_TOLERANCE_PX / self.camera.focal_px;
+        let first = out.len();
+        let cut = depth_pieces(
+            &along,
+            span,
+            segment.time,
+            interval.item,
+            tolerance,
+            &mut |p| {
+                out.push(p);
+            },
+        );
+        if cut.is_none() {
+            out.truncate(first);
+            out.push(*interval);
+            return;
+        }
+        let last = out.len() - 1;
+        (out[first].t[0], out[first].depth[0]) = (interval.t[0], interval.depth[0]);
+        (out[last].t[1], out[last].depth[1]) = (interval.t[1], interval.depth[1]);
+    }
+
+    /// The depth of item `index` along the ray `d`, from the tile's `depths` where it has it.
+    fn depth_along(&self, index: u32, d: DVec3, depths: &TileDepths) -> RayDepth {
+        match depths.of(index) {
+            Some(function) => function.along(d),
+            None => (self.corners(&self.items[index as usize]).depth_function()).along(d),
+        }
+    }
+
+    /// Bounds [nearest, farthest] on the depth of `interval` along the ray `d`
+    /// ([`RayDepth::range`]); `None` where they cannot be had.
+    fn depth_range(&self, interval: &Interval, d: DVec3, depths: &TileDepths) -> Option<[f64; 2]> {
+        let item = &self.items[interval.item as usize];
+        let segment = self.segment(item);
+        let [t0, t1] = segment.time;
+        let ends = [
+            interval.depth[0].min(interval.depth[1]),
+            interval.depth[0].max(interval.depth[1]),
+        ];
+        if !interval.bends || segment.still || !(t1 > t0) {
+            return Some(ends);
+        }
+        let span = interval.t.map(|t| (t - t0) / (t1 - t0));
+        let [nearest, farthest] = self.depth_along(interval.item, d, depths).range(span)?;
+        // The ends are exact; the bound's own rounding may fall just inside them.
+        Some([nearest.min(ends[0]), farthest.max(ends[1])])
+    }
+
     /// The shading normal (world, on the side of the triangle the eye sees: both sides are
     /// drawn) and the world point the ray `d` sees on `item` at segment fraction `s`.
     fn surface(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> (DVec3, DVec3) {
@@ -1164,7 +1280,8 @@ impl<'a> Prepared<'a> {
                 }
                 pool.with(|scratch| {
                     let mut stats = TriangleStats::default();
-                    self.fill_tile(list, bounds, &offsets, scratch, &mut stats);
+                    let depth = DepthPieces::AtOnce;
+                    self.fill_tile(list, bounds, &offsets, depth, scratch, &mut stats);
                     let mut starts = Vec::with_capacity(texels + 1);
                     let mut found = Vec::new();
                     starts.push(0u32);
@@ -1176,6 +1293,7 @@ impl<'a> Prepared<'a> {
                                         t: [t, t],
                                         depth: [depth, depth],
                                         item: index,
+                                        bends: false,
                                     });
                                 }
                             }
@@ -1183,7 +1301,7 @@ impl<'a> Prepared<'a> {
                                 let Scratch {
                                     lists, resolving, ..
                                 } = scratch;
-                                resolve(&lists[texel], resolving, &mut found);
+                                resolve(&lists[texel], resolving, &mut found, as_is);
                             }
                         }
                         starts.push(found.len() as u32);
@@ -1231,6 +1349,42 @@ impl<'a> Prepared<'a> {
                 && list.iter().all(|index| object(index) == only)
         })
     }
+}
+
+/// How a moving triangle's depth over a covered interval enters a sample's list.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum DepthPieces {
+    /// As linear pieces at once: a shadow map's lookups compare depths at every time.
+    AtOnce,
+    /// As the line between its exact ends, cut into pieces only where something compares or
+    /// follows the depth within it ([`Prepared::depth_pieces_of`]): the sweep among intervals
+    /// that overlap in time, a run that may be shadowed. Most of an image's samples see one
+    /// surface at a time, lit or unlit for sure, and need neither.
+    OnDemand,
+}
+
+/// The linear depth pieces of `item` along a ray whose depth is `along`, over the fractions
+/// `span` of a segment lasting `time` ([`RayDepth::knots`] at `tolerance`), handed to `piece` in
+/// time order. `None` when the depth is undefined somewhere in the span.
+fn depth_pieces(
+    along: &RayDepth,
+    span: [f64; 2],
+    time: [f64; 2],
+    item: u32,
+    tolerance: f64,
+    piece: &mut impl FnMut(Interval),
+) -> Option<()> {
+    let at_time = |s: f64| time[0] + (time[1] - time[0]) * s;
+    let mut previous = [span[0], along.at(span[0])?];
+    along.knots(span, tolerance, &mut |knot| {
+        piece(Interval {
+            t: [at_time(previous[0]), at_time(knot[0])],
+            depth: [previous[1], knot[1]],
+            item,
+            bends: false,
+        });
+        previous = knot;
+    })
 }
 
 /// The triangle index in every shadow-map id of an object that cannot shadow itself
@@ -1344,6 +1498,34 @@ impl SurfacePoint {
     }
 }
 
+/// The depth functions of a tile's items, in its list's (ascending) order: what a sample's
+/// interval needs to be cut into depth pieces or bounded in depth.
+#[derive(Default)]
+struct TileDepths {
+    items: Vec<u32>,
+    functions: Vec<DepthFunction>,
+}
+
+impl TileDepths {
+    fn of(&self, item: u32) -> Option<&DepthFunction> {
+        let at = self.items.binary_search(&item).ok()?;
+        self.functions.get(at)
+    }
+}
+
+/// Working memory of a run's shading, reused from run to run.
+#[derive(Default)]
+struct ShadingScratch {
+    /// The times a visible piece is cut at for shading.
+    cuts: Vec<f64>,
+    /// The surface at the ends of a run's pieces.
+    ends: Vec<SurfacePoint>,
+    /// Bounds on each piece's depth along the ray.
+    ranges: Vec<Option<[f64; 2]>>,
+    /// The run's linear depth pieces, where they are shaded one by one.
+    pieces: Vec<Interval>,
+}
+
 /// The working memory of one pass's tasks, handed from task to task so that sample lists keep
 /// their capacity (a task is a tile or a row of tiles; no more are in use than threads).
 #[derive(Default)]
@@ -1376,11 +1558,10 @@ struct Scratch {
     resolving: ResolveScratch,
     visible: Vec<Interval>,
     covered: Vec<[f64; 2]>,
-    knots: Vec<[f64; 2]>,
-    /// The times a visible piece is cut at for shading.
-    cuts: Vec<f64>,
-    /// The surface at the ends of a run's pieces.
-    ends: Vec<SurfacePoint>,
+    /// One covered interval's depth pieces, before they enter a list.
+    pieces: Vec<Interval>,
+    shading: ShadingScratch,
+    depths: TileDepths,
     /// The finished pixels: colour and hidden-beyond depth.
     pixels: Vec<([f32; 3], f32)>,
 }
@@ -1414,13 +1595,18 @@ impl Scratch {
     }
 
     /// Insert the intervals during which the placed triangle covers `sample`, with their
-    /// depth, in absolute time.
+    /// depth, in absolute time: as linear depth pieces at once or as the line between exact
+    /// ends, per `depth`; `pieces` cuts a list's intervals into linear depth pieces where a full
+    /// list is resolved.
+    #[allow(clippy::too_many_arguments)]
     fn insert(
         &mut self,
         sample: usize,
         placed: &Placed,
         d: DVec3,
         item: u32,
+        depth: DepthPieces,
+        pieces: &impl Fn(&Interval, &mut Vec<Interval>),
         stats: &mut TriangleStats,
     ) {
         let Placed {
@@ -1446,44 +1632,63 @@ impl Scratch {
                     t: [t0 + (t1 - t0) * window[0], t0 + (t1 - t0) * window[1]],
                     depth: [z, z],
                     item,
+                    bends: false,
                 };
-                self.push(sample, interval, stats);
+                self.push(sample, interval, pieces, stats);
             }
             return;
         }
         self.covered.clear();
         edges.covered(d, window, &mut self.covered);
-        let depth = placed.depth.along(d);
+        let along = placed.depth.along(d);
         for k in 0..self.covered.len() {
             let span = self.covered[k];
-            self.knots.clear();
-            let Some(z0) = depth.at(span[0]) else {
-                continue;
-            };
+            self.pieces.clear();
             let tolerance = tct::DEPTH_TOLERANCE_PX / placed.focal_px;
-            if depth.knots(span, tolerance, &mut self.knots).is_none() {
+            let cut = match depth {
+                DepthPieces::AtOnce => {
+                    let pieces = &mut self.pieces;
+                    depth_pieces(&along, span, placed.time, item, tolerance, &mut |p| {
+                        pieces.push(p);
+                    })
+                }
+                DepthPieces::OnDemand => along.line(span, tolerance).map(|(depth, bends)| {
+                    self.pieces.push(Interval {
+                        t: span.map(|s| t0 + (t1 - t0) * s),
+                        depth,
+                        item,
+                        bends,
+                    });
+                }),
+            };
+            if cut.is_none() {
                 continue;
             }
-            let mut previous = [span[0], z0];
-            for j in 0..self.knots.len() {
-                let knot = self.knots[j];
-                let interval = Interval {
-                    t: [t0 + (t1 - t0) * previous[0], t0 + (t1 - t0) * knot[0]],
-                    depth: [previous[1], knot[1]],
-                    item,
-                };
-                previous = knot;
-                self.push(sample, interval, stats);
+            for j in 0..self.pieces.len() {
+                let interval = self.pieces[j];
+                self.push(sample, interval, pieces, stats);
             }
         }
     }
 
-    /// Add one interval to a sample's list, compressing a full list first.
-    fn push(&mut self, sample: usize, interval: Interval, stats: &mut TriangleStats) {
+    /// Add one interval to a sample's list, compressing a full list first (its intervals cut
+    /// into linear depth pieces by `pieces`).
+    fn push(
+        &mut self,
+        sample: usize,
+        interval: Interval,
+        pieces: &impl Fn(&Interval, &mut Vec<Interval>),
+        stats: &mut TriangleStats,
+    ) {
         if self.lists[sample].len() >= MAX_INTERVALS_PER_SAMPLE {
             stats.compressed += 1;
             self.visible.clear();
-            resolve(&self.lists[sample], &mut self.resolving, &mut self.visible);
+            resolve(
+                &self.lists[sample],
+                &mut self.resolving,
+                &mut self.visible,
+                pieces,
+            );
             let list = &mut self.lists[sample];
             list.clear();
             list.extend_from_slice(&self.visible);
@@ -1498,6 +1703,7 @@ impl Scratch {
                 if joins {
                     last.t[1] = next.t[1];
                     last.depth[1] = next.depth[1];
+                    last.bends = false;
                 }
                 joins
             });

@@ -661,6 +661,7 @@ mod tests {
                 t: [0.6, 0.8],
                 depth: [1.0, 1.0],
                 item: 0,
+                bends: false,
             },
             id: (1, 0),
         };
@@ -737,6 +738,7 @@ mod tests {
                 t: [0.0, 1.0],
                 depth: [depth, depth + 0.5],
                 item: 0,
+                bends: false,
             },
             id: (id, 0),
         };

@@ -215,36 +215,102 @@ impl RayDepth {
 
     /// The depth over [s0, s1] as linear pieces (s, depth at s) joined end to end: halved where
     /// the line between a piece's ends misses the exact depth at its middle by more than
-    /// `tolerance` × the depth, up to [`MAX_DEPTH_PIECES`]. Appends the knots after the first
-    /// to `knots` (the caller holds the first). `None` when the depth is undefined somewhere.
+    /// `tolerance` × the depth, up to [`MAX_DEPTH_PIECES`]. Hands each knot after the first to
+    /// `knot` in order (the caller holds the first). `None` when the depth is undefined
+    /// somewhere.
     pub fn knots(
         &self,
         [s0, s1]: [f64; 2],
         tolerance: f64,
-        knots: &mut Vec<[f64; 2]>,
+        knot: &mut impl FnMut([f64; 2]),
     ) -> Option<()> {
         let z0 = self.at(s0)?;
         let z1 = self.at(s1)?;
-        self.refine([[s0, z0], [s1, z1]], tolerance, MAX_DEPTH_PIECES, knots)
+        self.refine([[s0, z0], [s1, z1]], tolerance, MAX_DEPTH_PIECES, knot)
+    }
+
+    /// The depth at s0 and s1, and whether [`RayDepth::knots`] would cut [s0, s1] (the line
+    /// between them misses the depth at the middle by more than `tolerance` × the depth).
+    /// `None` when the depth is undefined at one of the three.
+    pub fn line(&self, [s0, s1]: [f64; 2], tolerance: f64) -> Option<([f64; 2], bool)> {
+        let ends = [[s0, self.at(s0)?], [s1, self.at(s1)?]];
+        let (_, bends) = self.middle(ends, tolerance)?;
+        Some(([ends[0][1], ends[1][1]], bends))
+    }
+
+    /// The knot at the middle of a piece between `ends`, and whether the piece's line misses it
+    /// by more than `tolerance` × its depth.
+    fn middle(
+        &self,
+        [[s0, z0], [s1, z1]]: [[f64; 2]; 2],
+        tolerance: f64,
+    ) -> Option<([f64; 2], bool)> {
+        let sm = 0.5 * (s0 + s1);
+        let zm = self.at(sm)?;
+        Some(([sm, zm], (zm - 0.5 * (z0 + z1)).abs() > tolerance * zm))
     }
 
     fn refine(
         &self,
-        [[s0, z0], [s1, z1]]: [[f64; 2]; 2],
+        ends @ [start, end]: [[f64; 2]; 2],
         tolerance: f64,
         budget: usize,
-        knots: &mut Vec<[f64; 2]>,
+        knot: &mut impl FnMut([f64; 2]),
     ) -> Option<()> {
         if budget >= 2 {
-            let sm = 0.5 * (s0 + s1);
-            let zm = self.at(sm)?;
-            if (zm - 0.5 * (z0 + z1)).abs() > tolerance * zm {
-                self.refine([[s0, z0], [sm, zm]], tolerance, budget / 2, knots)?;
-                return self.refine([[sm, zm], [s1, z1]], tolerance, budget / 2, knots);
+            let (middle, bends) = self.middle(ends, tolerance)?;
+            if bends {
+                self.refine([start, middle], tolerance, budget / 2, knot)?;
+                return self.refine([middle, end], tolerance, budget / 2, knot);
             }
         }
-        knots.push([s1, z1]);
+        knot(end);
         Some(())
+    }
+
+    /// Bounds [lowest, highest] on the depth over [s0, s1], from the convex hull of the
+    /// rational Bézier form: with the numerator (cubic) and the denominator (quadratic,
+    /// degree-raised) in the Bernstein basis of [s0, s1], the depth is a convex combination of
+    /// the coefficients' ratios wherever the denominator's coefficients share one sign, and lies
+    /// between the least and the greatest. Exact at the ends; tight as the span shrinks. `None`
+    /// when the denominator's coefficients change sign (the plane may turn edge-on to the ray).
+    #[must_use]
+    pub fn range(&self, [s0, s1]: [f64; 2]) -> Option<[f64; 2]> {
+        let [o0, o1, o2, o3] = self.numerator;
+        let [q0, q1, q2] = self.denominator;
+        let h = s1 - s0;
+        // Taylor coefficients at s0 in u = (s − s0)/h: p(s0), p′(s0)·h, p″(s0)/2·h²,
+        // p‴(s0)/6·h³.
+        let numerator = [
+            ((o3 * s0 + o2) * s0 + o1) * s0 + o0,
+            ((3.0 * o3 * s0 + 2.0 * o2) * s0 + o1) * h,
+            (3.0 * o3 * s0 + o2) * h * h,
+            o3 * h * h * h,
+        ];
+        let denominator = [
+            (q2 * s0 + q1) * s0 + q0,
+            (2.0 * q2 * s0 + q1) * h,
+            q2 * h * h,
+            0.0,
+        ];
+        // Power basis in u to the cubic Bernstein basis.
+        let bernstein = |[a0, a1, a2, a3]: [f64; 4]| {
+            [
+                a0,
+                a0 + a1 / 3.0,
+                a0 + (2.0 * a1 + a2) / 3.0,
+                a0 + a1 + a2 + a3,
+            ]
+        };
+        let (n, q) = (bernstein(numerator), bernstein(denominator));
+        let same_sign = q.iter().all(|&x| x > 0.0) || q.iter().all(|&x| x < 0.0);
+        if !same_sign {
+            return None;
+        }
+        let ratios = [0, 1, 2, 3].map(|i| n[i] / q[i]);
+        let lowest = ratios.iter().copied().fold(f64::INFINITY, f64::min);
+        let highest = ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (lowest.is_finite() && highest.is_finite() && lowest > 0.0).then_some([lowest, highest])
     }
 }
 
@@ -396,6 +462,49 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_depth_range_holds_every_depth_of_its_span_and_is_exact_for_a_line() {
+        // A triangle turning and moving in depth: its depth bends along each ray.
+        let turning = MovingTriangle {
+            start: [
+                DVec3::new(-0.5, -0.4, -2.0),
+                DVec3::new(0.6, -0.3, -2.5),
+                DVec3::new(0.1, 0.7, -1.8),
+            ],
+            delta: [
+                DVec3::new(0.3, 0.1, -0.9),
+                DVec3::new(-0.2, 0.4, 0.6),
+                DVec3::new(0.5, -0.2, -0.3),
+            ],
+        };
+        let d = DVec3::new(0.05, 0.02, -1.0);
+        let along = turning.depth_function().along(d);
+        let mut widths = Vec::new();
+        for span in [[0.0, 1.0], [0.2, 0.6], [0.4, 0.45], [0.7, 0.7001]] {
+            let [lowest, highest] = along.range(span).unwrap();
+            let (mut least, mut most) = (f64::INFINITY, f64::NEG_INFINITY);
+            for step in 0..=1000 {
+                let s = span[0] + (span[1] - span[0]) * f64::from(step) / 1000.0;
+                let z = along.at(s).unwrap();
+                (least, most) = (least.min(z), most.max(z));
+            }
+            assert!(lowest <= least * (1.0 + 1e-12) && highest >= most * (1.0 - 1e-12));
+            widths.push((highest - lowest) / (most - least));
+        }
+        // The bound closes in on the depth's own range as the span shrinks.
+        assert!(widths[3] < 1.0 + 1e-3, "{widths:?}");
+        // A translation keeps the plane's normal: the depth is a line and its range is its ends.
+        let sliding = MovingTriangle {
+            start: turning.start,
+            delta: [DVec3::new(0.4, -0.1, -0.5); 3],
+        };
+        let along = sliding.depth_function().along(d);
+        let [lowest, highest] = along.range([0.25, 0.75]).unwrap();
+        let ends = [along.at(0.25).unwrap(), along.at(0.75).unwrap()];
+        assert!((lowest - ends[0].min(ends[1])).abs() <= 1e-12 * lowest);
+        assert!((highest - ends[0].max(ends[1])).abs() <= 1e-12 * highest);
     }
 
     #[test]
