@@ -431,10 +431,10 @@ mod tests {
         assert!(edge_on.depth(d, 0.5).is_none());
     }
 
-    #[test]
-    fn the_depth_polynomials_give_the_depth_of_the_corners_plane() {
-        // Corners moving in depth and across, so that n(s) and n·a(s) use every coefficient.
-        let triangle = MovingTriangle {
+    /// Corners moving in depth and across, so that n(s) and n·a(s) use every coefficient and the
+    /// depth bends along each ray.
+    fn turning_in_depth() -> MovingTriangle {
+        MovingTriangle {
             start: [
                 DVec3::new(-0.5, -0.4, -2.0),
                 DVec3::new(0.6, -0.3, -2.5),
@@ -445,7 +445,12 @@ mod tests {
                 DVec3::new(-0.2, 0.4, 0.6),
                 DVec3::new(0.5, -0.2, -0.3),
             ],
-        };
+        }
+    }
+
+    #[test]
+    fn the_depth_polynomials_give_the_depth_of_the_corners_plane() {
+        let triangle = turning_in_depth();
         let function = triangle.depth_function();
         for d in [
             DVec3::new(0.0, 0.0, -1.0),
@@ -466,19 +471,7 @@ mod tests {
 
     #[test]
     fn the_depth_range_holds_every_depth_of_its_span_and_is_exact_for_a_line() {
-        // A triangle turning and moving in depth: its depth bends along each ray.
-        let turning = MovingTriangle {
-            start: [
-                DVec3::new(-0.5, -0.4, -2.0),
-                DVec3::new(0.6, -0.3, -2.5),
-                DVec3::new(0.1, 0.7, -1.8),
-            ],
-            delta: [
-                DVec3::new(0.3, 0.1, -0.9),
-                DVec3::new(-0.2, 0.4, 0.6),
-                DVec3::new(0.5, -0.2, -0.3),
-            ],
-        };
+        let turning = turning_in_depth();
         let d = DVec3::new(0.05, 0.02, -1.0);
         let along = turning.depth_function().along(d);
         let mut widths = Vec::new();
