@@ -106,7 +106,7 @@ fn leading_comment(path: &Path) -> String {
 #[must_use]
 pub fn full_detail_mark(full_detail: bool) -> &'static str {
     if full_detail {
-        " full detail"
+        crate::lod::FULL_DETAIL_LABEL
     } else {
         ""
     }

@@ -26,6 +26,10 @@ use glam::{DMat3, DVec2, DVec3};
 use rayon::prelude::*;
 use std::sync::Arc;
 
+/// What the label of a render drawn at [`Lod::Off`] ends in, where the same method is also drawn
+/// with its level of detail (the gallery's captions, the study's series).
+pub const FULL_DETAIL_LABEL: &str = " full detail";
+
 /// Whether the plan may merge surfels.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Lod {

@@ -10,7 +10,7 @@
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::io::image::{read_exr, write_exr, write_png};
-use crate::lod::Lod;
+use crate::lod::{Lod, FULL_DETAIL_LABEL};
 use crate::metrics::{compare, ImageError};
 use crate::plan::Plan;
 use crate::plot::StudyPoint;
@@ -66,9 +66,6 @@ pub const FULL_DETAIL_BLUR_PX: f64 = DEFAULT_TOLERANCE_PX;
 
 /// The `kernel3d` sub-frame counts also studied at full detail.
 pub const FULL_DETAIL_SUBFRAMES: [usize; 2] = [4, 8];
-
-/// What a series' name ends in at `--lod off`.
-const FULL_DETAIL_SERIES: &str = " full detail";
 
 /// One setting to study.
 #[derive(Clone, Debug)]
@@ -137,7 +134,7 @@ impl Setting {
             } => format!("{} approx", self.method.name()),
             method => method.name().to_string(),
         };
-        self.with_lod(series, FULL_DETAIL_SERIES)
+        self.with_lod(series, FULL_DETAIL_LABEL)
     }
 
     fn file_stem(&self) -> String {
@@ -396,8 +393,8 @@ pub fn samples_to_match<'a>(
 /// detail's error.
 fn reference_series(points: &[StudyPoint], method: &str) -> String {
     let reference = Method::Reference { samples: 1 }.name();
-    let full = format!("{reference}{FULL_DETAIL_SERIES}");
-    if method.ends_with(FULL_DETAIL_SERIES) && points.iter().any(|p| p.method == full) {
+    let full = format!("{reference}{FULL_DETAIL_LABEL}");
+    if method.ends_with(FULL_DETAIL_LABEL) && points.iter().any(|p| p.method == full) {
         full
     } else {
         reference.to_string()

@@ -59,9 +59,9 @@ pub fn as_is(interval: &Interval, out: &mut Vec<Interval>) {
 
 /// The visible pieces of `intervals` (each an interval over which its item is nearest), in time
 /// order, appended to `out`; adjacent pieces of the same item are joined (Gribel's compression of
-/// one surface's pieces). Where intervals overlap in time, `pieces` first cuts each into the
-/// linear depth pieces the sweep compares (a list in time order without overlaps needs no depth,
-/// and is returned as it is).
+/// one surface's pieces). Where intervals overlap in time and some bend, `pieces` first cuts each
+/// into the linear depth pieces the sweep compares (a list in time order without overlaps needs
+/// no depth, and is returned as it is).
 ///
 /// The interval ends cut the exposure into spans over which the set of active pieces is fixed
 /// (kept incrementally as the sweep passes starts and ends), and each piece is a line in time:
@@ -92,11 +92,15 @@ pub fn resolve(
         active,
         pieces: cut,
     } = scratch;
-    cut.clear();
-    for interval in intervals {
-        pieces(interval, cut);
-    }
-    let intervals = &cut[..];
+    let intervals = if intervals.iter().any(|i| i.bends) {
+        cut.clear();
+        for interval in intervals {
+            pieces(interval, cut);
+        }
+        &cut[..]
+    } else {
+        intervals
+    };
     events.clear();
     for i in intervals {
         events.extend_from_slice(&i.t);

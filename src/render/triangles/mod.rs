@@ -74,8 +74,8 @@ fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>
 /// Gauss–Legendre points. A chord meets an arc at its ends and misses it by the sagitta M at its
 /// middle (RMS 0.73 M over the sub-segment); the fitted line is that chord moved outward by 2M/3,
 /// so it lies M/3 inside the arc at the middle and 2M/3 outside it at the ends, RMS 0.30 M: the
-/// same sub-segments follow a turn 2.4 times as closely. Consecutive lines then meet only nearly (both move outward alike at a shared end);
-/// a jump at one instant has no weight in time.
+/// same sub-segments follow a turn 2.4 times as closely. Consecutive lines then meet only nearly
+/// (both move outward alike at a shared end); a jump at one instant has no weight in time.
 fn fitted_paths(
     positions_at: impl Fn(f64) -> Vec<DVec3>,
     [t0, t1]: [f64; 2],
@@ -552,14 +552,13 @@ impl<'a> Prepared<'a> {
         let [ox1, oy1] = offsets.iter().fold([f64::NEG_INFINITY; 2], |m, o| {
             [m[0].max(o[0]), m[1].max(o[1])]
         });
-        scratch.depths.items.clear();
-        scratch.depths.functions.clear();
+        scratch.depths.0.clear();
+        let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
         for &index in list {
             let item = &self.items[index as usize];
             let placed = self.triangle(item);
-            if self.exposure == Exposure::Shutter {
-                scratch.depths.items.push(index);
-                scratch.depths.functions.push(placed.depth);
+            if cut_later {
+                scratch.depths.0.push((index, placed.depth));
             }
             let [ix0, iy0, ix1, iy1] = item.bounds;
             // A moving triangle covers samples within the hull of its corners' screen paths
@@ -1092,27 +1091,15 @@ impl<'a> Prepared<'a> {
         depths: &TileDepths,
         out: &mut Vec<Interval>,
     ) {
-        let item = &self.items[interval.item as usize];
-        let segment = self.segment(item);
-        let [t0, t1] = segment.time;
-        if !interval.bends || segment.still || !(t1 > t0) {
+        let Some((along, span, time)) = self.bend(interval, d, depths) else {
             out.push(*interval);
             return;
-        }
-        let along = self.depth_along(interval.item, d, depths);
-        let span = interval.t.map(|t| (t - t0) / (t1 - t0));
+        };
         let tolerance = tct::DEPTH_TOLERANCE_PX / self.camera.focal_px;
         let first = out.len();
-        let cut = depth_pieces(
-            &along,
-            span,
-            segment.time,
-            interval.item,
-            tolerance,
-            &mut |p| {
-                out.push(p);
-            },
-        );
+        let cut = depth_pieces(&along, span, time, interval.item, tolerance, &mut |p| {
+            out.push(p);
+        });
         if cut.is_none() {
             out.truncate(first);
             out.push(*interval);
@@ -1123,29 +1110,38 @@ impl<'a> Prepared<'a> {
         (out[last].t[1], out[last].depth[1]) = (interval.t[1], interval.depth[1]);
     }
 
-    /// The depth of item `index` along the ray `d`, from the tile's `depths` where it has it.
-    fn depth_along(&self, index: u32, d: DVec3, depths: &TileDepths) -> RayDepth {
-        match depths.of(index) {
-            Some(function) => function.along(d),
-            None => (self.corners(&self.items[index as usize]).depth_function()).along(d),
+    /// Where `interval` of the ray `d` bends: its item's depth along the ray (from the tile's
+    /// `depths` where it has it), its span as fractions of the item's segment, and the segment's
+    /// time. `None` for a line.
+    fn bend(
+        &self,
+        interval: &Interval,
+        d: DVec3,
+        depths: &TileDepths,
+    ) -> Option<(RayDepth, [f64; 2], [f64; 2])> {
+        let item = &self.items[interval.item as usize];
+        let time @ [t0, t1] = self.segment(item).time;
+        if !interval.bends || !(t1 > t0) {
+            return None;
         }
+        let along = match depths.of(interval.item) {
+            Some(function) => function.along(d),
+            None => self.corners(item).depth_function().along(d),
+        };
+        Some((along, interval.t.map(|t| (t - t0) / (t1 - t0)), time))
     }
 
     /// Bounds [nearest, farthest] on the depth of `interval` along the ray `d`
     /// ([`RayDepth::range`]); `None` where they cannot be had.
     fn depth_range(&self, interval: &Interval, d: DVec3, depths: &TileDepths) -> Option<[f64; 2]> {
-        let item = &self.items[interval.item as usize];
-        let segment = self.segment(item);
-        let [t0, t1] = segment.time;
         let ends = [
             interval.depth[0].min(interval.depth[1]),
             interval.depth[0].max(interval.depth[1]),
         ];
-        if !interval.bends || segment.still || !(t1 > t0) {
+        let Some((along, span, _)) = self.bend(interval, d, depths) else {
             return Some(ends);
-        }
-        let span = interval.t.map(|t| (t - t0) / (t1 - t0));
-        let [nearest, farthest] = self.depth_along(interval.item, d, depths).range(span)?;
+        };
+        let [nearest, farthest] = along.range(span)?;
         // The ends are exact; the bound's own rounding may fall just inside them.
         Some([nearest.min(ends[0]), farthest.max(ends[1])])
     }
@@ -1375,15 +1371,17 @@ fn depth_pieces(
     piece: &mut impl FnMut(Interval),
 ) -> Option<()> {
     let at_time = |s: f64| time[0] + (time[1] - time[0]) * s;
-    let mut previous = [span[0], along.at(span[0])?];
+    let mut previous: Option<[f64; 2]> = None;
     along.knots(span, tolerance, &mut |knot| {
-        piece(Interval {
-            t: [at_time(previous[0]), at_time(knot[0])],
-            depth: [previous[1], knot[1]],
-            item,
-            bends: false,
-        });
-        previous = knot;
+        if let Some(previous) = previous {
+            piece(Interval {
+                t: [at_time(previous[0]), at_time(knot[0])],
+                depth: [previous[1], knot[1]],
+                item,
+                bends: false,
+            });
+        }
+        previous = Some(knot);
     })
 }
 
@@ -1501,15 +1499,15 @@ impl SurfacePoint {
 /// The depth functions of a tile's items, in its list's (ascending) order: what a sample's
 /// interval needs to be cut into depth pieces or bounded in depth.
 #[derive(Default)]
-struct TileDepths {
-    items: Vec<u32>,
-    functions: Vec<DepthFunction>,
-}
+struct TileDepths(Vec<(u32, DepthFunction)>);
 
 impl TileDepths {
     fn of(&self, item: u32) -> Option<&DepthFunction> {
-        let at = self.items.binary_search(&item).ok()?;
-        self.functions.get(at)
+        let at = self
+            .0
+            .binary_search_by_key(&item, |(index, _)| *index)
+            .ok()?;
+        Some(&self.0[at].1)
     }
 }
 

@@ -215,18 +215,19 @@ impl RayDepth {
 
     /// The depth over [s0, s1] as linear pieces (s, depth at s) joined end to end: halved where
     /// the line between a piece's ends misses the exact depth at its middle by more than
-    /// `tolerance` × the depth, up to [`MAX_DEPTH_PIECES`]. Hands each knot after the first to
-    /// `knot` in order (the caller holds the first). `None` when the depth is undefined
-    /// somewhere.
+    /// `tolerance` × the depth, up to [`MAX_DEPTH_PIECES`]. Hands each knot to `knot` in order,
+    /// the first included. `None` when the depth is undefined somewhere (some knots may have
+    /// been handed by then).
     pub fn knots(
         &self,
         [s0, s1]: [f64; 2],
         tolerance: f64,
         knot: &mut impl FnMut([f64; 2]),
     ) -> Option<()> {
-        let z0 = self.at(s0)?;
-        let z1 = self.at(s1)?;
-        self.refine([[s0, z0], [s1, z1]], tolerance, MAX_DEPTH_PIECES, knot)
+        let first = [s0, self.at(s0)?];
+        let last = [s1, self.at(s1)?];
+        knot(first);
+        self.refine([first, last], tolerance, MAX_DEPTH_PIECES, knot)
     }
 
     /// The depth at s0 and s1, and whether [`RayDepth::knots`] would cut [s0, s1] (the line
