@@ -1272,7 +1272,7 @@ impl<'a> Prepared<'a> {
                 let texels = ((x1 - x0) * (y1 - y0)) as usize;
                 let list = lists.list(tile);
                 if self.shadows_nothing_read_here(list) {
-                    return (vec![0; texels + 1], Vec::new(), 1);
+                    return (Vec::new(), Vec::new(), 1);
                 }
                 pool.with(|scratch| {
                     let mut stats = TriangleStats::default();
@@ -1311,7 +1311,11 @@ impl<'a> Prepared<'a> {
                                 id: self.shadow_id(item),
                             }
                         })
-                        .collect();
+                        .collect::<Vec<Occluder>>();
+                    // A tile that holds no occluder keeps no starts either.
+                    if occluders.is_empty() {
+                        starts = Vec::new();
+                    }
                     (starts, occluders, 0)
                 })
             })

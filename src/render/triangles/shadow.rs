@@ -214,7 +214,8 @@ impl Nearest {
 }
 
 /// The occluders of every texel: per tile of the light's view, the texels' lists one after the
-/// other (`starts` has one more entry than the tile has texels).
+/// other (`starts` has one more entry than the tile has texels, or none at all where the tile
+/// holds no occluder).
 pub struct Occluders {
     /// The light's camera.
     pub camera: Camera,
@@ -228,9 +229,10 @@ pub struct Occluders {
 pub struct ShadowMap {
     occluders: Occluders,
     tiles_x: u32,
-    /// The nearest occluders of each texel over all time, row by row: a receiver whose depth
-    /// limit lies nearer than every other triangle's occluder its path reads is lit throughout.
-    nearest: Vec<Nearest>,
+    /// The nearest occluders of each texel over all time, per tile as its texels' lists are (none
+    /// where the tile holds no occluder): a receiver whose depth limit lies nearer than every
+    /// other triangle's occluder its path reads is lit throughout.
+    nearest: Vec<Vec<Nearest>>,
     /// The same for each tile's texels, row by row: one look for a path within a tile.
     nearest_in_tile: Vec<Nearest>,
 }
@@ -254,25 +256,22 @@ impl ShadowMap {
     /// visibility alone, and a reference frame would pay for a million texels it never reads.
     #[must_use]
     pub fn summarised(mut self) -> ShadowMap {
-        let side = self.occluders.camera.width;
-        let map = &self;
-        let nearest: Vec<Nearest> = (0..side * side)
-            .into_par_iter()
-            .map(|i| Nearest::of(map.texel(i64::from(i % side), i64::from(i / side))))
-            .collect();
-        let (tile_px, tiles_x) = (crate::raster::TILE_PX, self.tiles_x);
-        let nearest_in_tile = (0..self.occluders.tiles.len() as u32)
-            .into_par_iter()
-            .map(|tile| {
-                let (x0, y0) = (tile % tiles_x * tile_px, tile / tiles_x * tile_px);
-                (y0..(y0 + tile_px).min(side))
-                    .flat_map(|y| (x0..(x0 + tile_px).min(side)).map(move |x| (x, y)))
-                    .map(|(x, y)| nearest[(y * side + x) as usize])
-                    .fold(Nearest::NONE, Nearest::merge)
+        let nearest: Vec<Vec<Nearest>> = self
+            .occluders
+            .tiles
+            .par_iter()
+            .map(|(starts, list)| {
+                starts
+                    .windows(2)
+                    .map(|s| Nearest::of(&list[s[0] as usize..s[1] as usize]))
+                    .collect()
             })
             .collect();
+        self.nearest_in_tile = nearest
+            .iter()
+            .map(|texels| texels.iter().copied().fold(Nearest::NONE, Nearest::merge))
+            .collect();
         self.nearest = nearest;
-        self.nearest_in_tile = nearest_in_tile;
         self
     }
 
@@ -360,14 +359,15 @@ impl ShadowMap {
         own: (u32, u32),
     ) -> bool {
         // Not summarised (a map of an instant): nothing is known for sure.
-        if self.nearest.is_empty() || !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
+        if self.nearest_in_tile.is_empty() || !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
             return false;
         }
         let limit = limit_a.max(limit_b);
         let side = i64::from(self.occluders.camera.width);
         let lit = |x: i64, y: i64| {
-            let index = (y * side + x) as usize;
-            f64::from(self.nearest[index].except(own)) >= limit
+            let (tile, local) = self.tile_and_texel(x as u32, y as u32);
+            let nearest = self.nearest[tile].get(local).unwrap_or(&Nearest::NONE);
+            f64::from(nearest.except(own)) >= limit
                 || self
                     .others_during(x, y, span, own)
                     .all(|(o, [a0, a1])| o.piece.depth_at(a0).min(o.piece.depth_at(a1)) >= limit)
@@ -445,13 +445,21 @@ impl ShadowMap {
         if x < 0 || y < 0 || x >= i64::from(camera.width) || y >= i64::from(camera.height) {
             return &[];
         }
-        let (x, y) = (x as u32, y as u32);
+        let (tile, local) = self.tile_and_texel(x as u32, y as u32);
+        let (starts, list) = &self.occluders.tiles[tile];
+        match starts.get(local..local + 2) {
+            Some(&[start, end]) => &list[start as usize..end as usize],
+            _ => &[],
+        }
+    }
+
+    /// The tile holding texel (x, y), which lies in the map, and the texel's place in it.
+    fn tile_and_texel(&self, x: u32, y: u32) -> (usize, usize) {
+        let camera = &self.occluders.camera;
         let tile_px = crate::raster::TILE_PX;
         let (x0, y0) = (x / tile_px * tile_px, y / tile_px * tile_px);
         let w = (x0 + tile_px).min(camera.width) - x0;
-        let (starts, list) = &self.occluders.tiles[self.tile_of(x, y)];
-        let local = ((y - y0) * w + (x - x0)) as usize;
-        &list[starts[local] as usize..starts[local + 1] as usize]
+        (self.tile_of(x, y), ((y - y0) * w + (x - x0)) as usize)
     }
 
     /// The depth bias at light depth `depth` for a receiver at `p` with unit `normal`.
