@@ -116,16 +116,13 @@ impl Spot {
         })
     }
 
-    /// Irradiance scale towards world point `p` before the cosine law: the intensity inside the
-    /// cone, fading to 0 over its outer edge (smoothstep in the cosine of the angle off the axis,
-    /// which needs no arc cosine per shaded point), 0 outside.
+    /// Irradiance scale along the unit direction `from_light` before the cosine law: the
+    /// intensity inside the cone, fading to 0 over its outer edge (smoothstep in the cosine of
+    /// the angle off the axis, which needs no arc cosine per shaded point), 0 outside.
     #[must_use]
-    pub fn reach(&self, p: DVec3) -> f64 {
-        let Some(towards) = (p - self.position).try_normalize() else {
-            return 0.0;
-        };
+    pub fn reach(&self, from_light: DVec3) -> f64 {
         let [outer, inner] = self.edge_cosines;
-        let x = ((towards.dot(self.direction) - outer) / (inner - outer)).clamp(0.0, 1.0);
+        let x = ((from_light.dot(self.direction) - outer) / (inner - outer)).clamp(0.0, 1.0);
         self.intensity * x * x * (3.0 - 2.0 * x)
     }
 }
@@ -265,11 +262,13 @@ impl LightSource<'_> {
     /// reach there (a spot's within its cone) times max(0, N·L).
     #[must_use]
     pub fn irradiance(&self, normal: DVec3, p: DVec3) -> f64 {
+        let towards = self.towards(p);
         let reach = match self {
             LightSource::Directional(l) => l.intensity,
-            LightSource::Spot(s) => s.reach(p),
+            // A point at the light itself has no direction: its cosine is 0.
+            LightSource::Spot(s) => s.reach(-towards),
         };
-        reach * normal.dot(self.towards(p)).max(0.0)
+        reach * normal.dot(towards).max(0.0)
     }
 }
 

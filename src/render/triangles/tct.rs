@@ -327,10 +327,19 @@ impl EdgeFunctions {
         cuts[n] = window[0];
         n += 1;
         let coefficients = self.0.map(|e| [d.dot(e.a), d.dot(e.b), d.dot(e.c)]);
+        let [w0, w1] = window;
         for [a, b, c] in coefficients {
+            // Most edges keep one sign over the window: nonzero at both ends with one sign, and
+            // monotone between them (its slope 2as + b of one sign at both ends), an edge has
+            // no root inside, and the square root and divisions are skipped.
+            let value = |s: f64| (a * s + b) * s + c;
+            let slope = |s: f64| 2.0 * a * s + b;
+            if value(w0) * value(w1) > 0.0 && slope(w0) * slope(w1) > 0.0 {
+                continue;
+            }
             let (roots, count) = quadratic_roots(a, b, c);
             for &r in &roots[..count] {
-                if r > window[0] && r < window[1] {
+                if r > w0 && r < w1 {
                     cuts[n] = r;
                     n += 1;
                 }
