@@ -414,6 +414,52 @@ mod tests {
     }
 
     #[test]
+    fn covered_spans_agree_with_the_corners_tested_at_each_instant() {
+        // Corners far apart that move far and every way, so that many edges cross the ray twice
+        // within a window or dip to it and back: the spans must hold exactly the instants at
+        // which the ray passes inside the corners of that instant, up to the roots' rounding.
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let d = DVec3::new(0.1, -0.05, -1.0);
+        let mut out = Vec::new();
+        let (mut covered_somewhere, mut split) = (0, 0);
+        for _ in 0..2000 {
+            let corner =
+                |next: &mut dyn FnMut() -> f64| DVec3::new(next(), next(), -2.0 + 0.5 * next());
+            let start = [(); 3].map(|()| corner(&mut next));
+            let delta = [(); 3].map(|()| DVec3::new(2.0 * next(), 2.0 * next(), 0.3 * next()));
+            let triangle = MovingTriangle { start, delta };
+            let window = [0.2 * next().abs(), 1.0 - 0.2 * next().abs()];
+            out.clear();
+            triangle.edge_functions().covered(d, window, &mut out);
+            covered_somewhere += usize::from(!out.is_empty());
+            split += usize::from(out.len() > 1);
+            for i in 0..=4000 {
+                let s = window[0] + (window[1] - window[0]) * f64::from(i) / 4000.0;
+                let [a, b, c] = triangle.at(s);
+                let values = [a.cross(b), b.cross(c), c.cross(a)].map(|n| d.dot(n));
+                let inside = values.iter().all(|&v| v > 0.0) || values.iter().all(|&v| v < 0.0);
+                let near_an_end = out.iter().flatten().any(|&e| (e - s).abs() < 1e-9);
+                let in_spans = out.iter().any(|&[s0, s1]| s >= s0 && s <= s1);
+                assert!(
+                    near_an_end || inside == in_spans,
+                    "s = {s}: inside {inside}, spans {out:?}, {triangle:?}"
+                );
+            }
+        }
+        // The cases the test is for did occur.
+        assert!(
+            covered_somewhere > 500 && split > 40,
+            "{covered_somewhere} {split}"
+        );
+    }
+
+    #[test]
     fn a_still_triangle_covers_all_or_nothing_and_edge_on_covers_nothing() {
         let d = DVec3::new(0.0, 0.0, -1.0);
         let mut out = Vec::new();
