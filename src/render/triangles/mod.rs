@@ -232,6 +232,9 @@ struct Item {
     triangle: u32,
     /// Pixel bounds [x0, y0, x1, y1).
     bounds: [u32; 4],
+    /// Its corners share one shading normal and one colour (a flat face in one colour): where
+    /// a ray meets it, no barycentric weights are needed.
+    plain: bool,
 }
 
 /// Triangle objects prepared for one exposure, seen by one camera (the scene's, or a light's).
@@ -428,6 +431,11 @@ impl<'a> Prepared<'a> {
                         segment: s as u32,
                         triangle: t as u32,
                         bounds: [0; 4],
+                        plain: {
+                            let [n0, n1, n2] = mesh.normals[t];
+                            let [c0, c1, c2] = mesh.triangles[t].map(|v| mesh.colours[v as usize]);
+                            n0 == n1 && n1 == n2 && c0 == c1 && c1 == c2
+                        },
                     };
                     let triangle = self.corners(&item);
                     let Some(window) = triangle.in_front(camera.near) else {
@@ -929,7 +937,7 @@ impl<'a> Prepared<'a> {
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
-        let first = triangle.ray_hit(d, fraction(span[0]));
+        let first = self.hit(item, &triangle, d, fraction(span[0]));
         let start = self.surface_with(item, &first, d, fraction(span[0]));
         let ends = if segment.still {
             [start; 2]
@@ -1149,7 +1157,17 @@ impl<'a> Prepared<'a> {
     /// The shading normal (world, on the side of the triangle the eye sees: both sides are
     /// drawn) and the world point the ray `d` sees on `item` at segment fraction `s`.
     fn surface(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> (DVec3, DVec3) {
-        self.surface_with(item, &triangle.ray_hit(d, s), d, s)
+        self.surface_with(item, &self.hit(item, triangle, d, s), d, s)
+    }
+
+    /// Where the ray `d` meets `item` (as `triangle`) at segment fraction `s`: from its plane
+    /// alone where its corners share what the weights would blend.
+    fn hit(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> RayHit {
+        if item.plain {
+            triangle.plane_hit(d, s)
+        } else {
+            triangle.ray_hit(d, s)
+        }
     }
 
     /// [`Prepared::surface`] and [`Prepared::albedo`] at once.
@@ -1160,7 +1178,7 @@ impl<'a> Prepared<'a> {
         d: DVec3,
         s: f64,
     ) -> SurfacePoint {
-        let hit = triangle.ray_hit(d, s);
+        let hit = self.hit(item, triangle, d, s);
         let (normal, point) = self.surface_with(item, &hit, d, s);
         SurfacePoint {
             normal,
@@ -1175,7 +1193,11 @@ impl<'a> Prepared<'a> {
         let weights = hit.weights;
         let (_, mesh, _) = &self.objects[item.object as usize];
         let normals = mesh.normals[item.triangle as usize];
-        let local: DVec3 = (0..3).map(|k| normals[k] * weights[k]).sum();
+        let local: DVec3 = if item.plain {
+            normals[0]
+        } else {
+            (0..3).map(|k| normals[k] * weights[k]).sum()
+        };
         let [r0, r1] = self.segment(item).rotation;
         let mut world = (r0 * local).lerp(r1 * local, s).normalize_or_zero();
         // Both sides are drawn, and the side the ray meets turns the normal: not the shading
@@ -1220,13 +1242,16 @@ impl<'a> Prepared<'a> {
     /// The corner colours interpolated perspective-correctly where the ray `d` meets `item` at
     /// segment fraction `s`.
     fn albedo(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
-        self.albedo_with(item, triangle.ray_hit(d, s).weights)
+        self.albedo_with(item, self.hit(item, triangle, d, s).weights)
     }
 
     /// The corner colours of `item` at barycentric `weights`.
     fn albedo_with(&self, item: &Item, weights: [f64; 3]) -> [f64; 3] {
         let (_, mesh, _) = &self.objects[item.object as usize];
         let corners = mesh.triangles[item.triangle as usize];
+        if item.plain {
+            return mesh.colours[corners[0] as usize].map(f64::from);
+        }
         [0, 1, 2].map(|c| {
             (0..3)
                 .map(|k| weights[k] * f64::from(mesh.colours[corners[k] as usize][c]))
