@@ -88,6 +88,46 @@ fn a_translating_square_covers_the_centre_pixel_for_the_closed_form_time() {
 }
 
 #[test]
+fn what_moves_wholly_behind_a_still_surface_is_left_out_where_it_covers_and_drawn_elsewhere() {
+    // A still blue square at z = 0 and a green one sliding behind it at z = −1, wide enough to
+    // show past the blue one's right edge at the end of its slide: where the blue square covers
+    // a sample all along, the green one is left out unsolved and the image is blue's alone;
+    // past its edge green shows for the closed-form share.
+    let blue = object(
+        "blue",
+        &square(2.0),
+        [0.0, 0.0, 1.0],
+        &[(0.0, at(0.0, 0.0, 0.0))],
+    );
+    let green = object(
+        "green",
+        &square(1.0),
+        [0.0, 1.0, 0.0],
+        &[(0.0, at(-0.5, 0.0, -1.0)), (1.0, at(1.5, 0.0, -1.0))],
+    );
+    let alone = render(&scene(33, 1).with_object(blue.clone()), &Method::ANALYTIC);
+    let both = render(
+        &scene(33, 1).with_object(blue).with_object(green),
+        &Method::ANALYTIC,
+    );
+    assert!(both.stats.triangles.hidden_behind_still > 0);
+    // The camera sees z = 0 over ±tan(10°)·10 = ±1.763 across 33 px: blue covers |x| ≤ 1,
+    // pixels 16 ± 9.
+    for x in 7..=25 {
+        assert_eq!(
+            pixel(&both.image, x, 16),
+            pixel(&alone.image, x, 16),
+            "x = {x}"
+        );
+    }
+    // Pixel 30's centre ray meets z = −1 at x = 14/16.5 · 1.763 · 1.1 = 1.645: the green square
+    // (centre −0.5 + 2s, half side 0.5) covers it from s = (1.645 − 0.5 + 0.5)/2 = 0.822 on.
+    let p = pixel(&both.image, 30, 16);
+    let share = 1.0 - 1.645 / 2.0;
+    assert!((f64::from(p[1]) - share).abs() < 2e-3, "{p:?}, {share}");
+}
+
+#[test]
 fn a_surface_receding_behind_another_is_seen_until_it_crosses() {
     // Palmér Fig. 2.1 with a crossing: a still blue square at z = 0 and a red one moving from
     // z = 1 to z = −1 in front of and then behind it; red is nearer for exactly half the time.
@@ -398,9 +438,10 @@ fn extreme_triangles_stay_finite_and_their_lists_bounded() {
 
 #[test]
 fn a_sample_behind_hundreds_of_layers_keeps_what_is_in_front() {
-    // 300 still squares stacked behind a red one sliding past: more intervals than a list holds,
-    // so it is compressed to its visible pieces; the centre pixel is red for the quarter of the
-    // exposure the slider covers it and the nearest still layer (blue) otherwise.
+    // 300 squares stacked behind a red one sliding past: more intervals than a list holds, so it
+    // is compressed to its visible pieces; the centre pixel is red for the quarter of the
+    // exposure the slider covers it and the nearest layer (blue) otherwise. The layers drift a
+    // hair, so that none is left out unsolved behind a still one before the list fills.
     let mut s = scene(33, 1).with_object(object(
         "slider",
         &square(1.0),
@@ -417,7 +458,10 @@ fn a_sample_behind_hundreds_of_layers_keeps_what_is_in_front() {
             "layer",
             &square(2.0),
             colour,
-            &[(0.0, at(0.0, 0.0, -0.01 * f64::from(k)))],
+            &[
+                (0.0, at(0.0, 0.0, -0.01 * f64::from(k))),
+                (1.0, at(0.0, 1e-4, -0.01 * f64::from(k))),
+            ],
         ));
     }
     let out = render(&s, &Method::ANALYTIC);

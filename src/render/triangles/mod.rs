@@ -118,6 +118,9 @@ pub struct TriangleStats {
     pub joined: usize,
     /// Intervals dropped because a list was still full after compression.
     pub dropped: usize,
+    /// Samples a triangle item was left out of unsolved: it lies wholly deeper there than a
+    /// still triangle covering the sample all along.
+    pub hidden_behind_still: usize,
     /// Visible pieces shaded (`analytic`).
     pub pieces: usize,
     /// Runs of visible pieces: a triangle's pieces back to back in time, one per sub-segment it
@@ -156,8 +159,8 @@ impl TriangleStats {
         }
         if self.intervals > 0 {
             out.push_str(&format!(
-                "  analytic visibility: {} intervals, at most {} on one sample (cap {MAX_INTERVALS_PER_SAMPLE}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped\n",
-                self.intervals, self.peak_per_sample, self.compressed, self.joined, self.dropped
+                "  analytic visibility: {} intervals, at most {} on one sample (cap {MAX_INTERVALS_PER_SAMPLE}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped; {} item × sample pairs left out unsolved, wholly behind a still triangle covering the sample all along\n",
+                self.intervals, self.peak_per_sample, self.compressed, self.joined, self.dropped, self.hidden_behind_still
             ));
             out.push_str(&format!(
                 "  shading: {} visible pieces in {} runs of one triangle ({} runs of several sub-segments shaded as one), {} pieces point-sampled in shadow-map time (dynamic receivers that may be shadowed)\n",
@@ -176,6 +179,7 @@ impl TriangleStats {
         self.compressed += other.compressed;
         self.joined += other.joined;
         self.dropped += other.dropped;
+        self.hidden_behind_still += other.hidden_behind_still;
         self.pieces += other.pieces;
         self.runs += other.runs;
         self.joined_runs += other.joined_runs;
@@ -220,6 +224,9 @@ struct Placed {
     focal_px: f64,
     /// Whether no corner moves: the triangle covers a sample all the time or never, at one depth.
     still: bool,
+    /// Whether it is still and in front of the near plane over the whole exposure: a sample it
+    /// covers, it covers all along.
+    all_along: bool,
     /// Its depth along any ray over the segment.
     depth: DepthFunction,
 }
@@ -400,6 +407,7 @@ impl<'a> Prepared<'a> {
         let segment = self.segment(item);
         let triangle = self.corners(item);
         let window = triangle.in_front(self.camera.near).unwrap_or([0.0, 0.0]);
+        let still = triangle.delta == [DVec3::ZERO; 3];
         Placed {
             edges: triangle.edge_functions(),
             depth: triangle.depth_function(),
@@ -407,7 +415,10 @@ impl<'a> Prepared<'a> {
             window,
             time: segment.time,
             focal_px: self.camera.focal_px,
-            still: triangle.delta == [DVec3::ZERO; 3],
+            still,
+            all_along: still
+                && window == [0.0, 1.0]
+                && segment.time == [self.scene.shutter.open, self.scene.shutter.close],
         }
     }
 
@@ -542,65 +553,92 @@ impl<'a> Prepared<'a> {
     fn fill_tile(
         &self,
         list: &[u32],
-        [x0, y0, x1, y1]: [u32; 4],
+        bounds @ [x0, y0, x1, y1]: [u32; 4],
         offsets: &[[f64; 2]],
         depth: DepthPieces,
         scratch: &mut Scratch,
         stats: &mut TriangleStats,
     ) {
-        let camera = &self.camera;
-        let w = (x1 - x0) as usize;
-        let per_pixel = offsets.len();
-        let samples = w * (y1 - y0) as usize * per_pixel;
+        let samples = ((x1 - x0) * (y1 - y0)) as usize * offsets.len();
         scratch.reset(samples);
-        // The samples' offsets within their pixel span these.
-        let [ox0, oy0] = offsets
-            .iter()
-            .fold([f64::INFINITY; 2], |m, o| [m[0].min(o[0]), m[1].min(o[1])]);
-        let [ox1, oy1] = offsets.iter().fold([f64::NEG_INFINITY; 2], |m, o| {
-            [m[0].max(o[0]), m[1].max(o[1])]
-        });
+        let grid = SampleGrid::new(bounds, offsets);
         scratch.depths.0.clear();
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
-        for &index in list {
-            let item = &self.items[index as usize];
-            let placed = self.triangle(item);
-            if cut_later {
-                scratch.depths.0.push((index, placed.depth));
-            }
-            let [ix0, iy0, ix1, iy1] = item.bounds;
-            // A moving triangle covers samples within the hull of its corners' screen paths
-            // only; the rest of its bounds are skipped a row at a time.
-            let hull = (!placed.still)
-                .then(|| screen_corners(camera, &placed.triangle, placed.window))
-                .flatten()
-                .map(|corners| ScreenHull::new(&corners));
-            for y in iy0.max(y0)..iy1.min(y1) {
-                let (mut from, mut to) = (ix0.max(x0), ix1.min(x1));
-                if let Some(hull) = &hull {
-                    let Some([lo, hi]) = hull.x_range(f64::from(y) + oy0, f64::from(y) + oy1)
-                    else {
-                        continue;
-                    };
-                    let pixel = |x: f64| x.clamp(0.0, f64::from(u32::MAX)) as u32;
-                    from = from.max(pixel((lo - ox1 - HULL_MARGIN_PX).ceil()));
-                    to = to.min(pixel((hi - ox0 + HULL_MARGIN_PX).floor() + 1.0));
+        // Still items first: where one covers a sample all along, a later item lying wholly
+        // deeper than it there can never be seen, and is left out before its coverage is
+        // solved (a floor or a still occluder hides what passes behind it, as a shadow map's
+        // still occluders hide the moving receivers behind them).
+        for still in [true, false] {
+            for &index in list {
+                let item = &self.items[index as usize];
+                if self.segment(item).still != still {
+                    continue;
                 }
-                for x in from..to {
-                    let pixel = (y - y0) as usize * w + (x - x0) as usize;
-                    for (k, [ox, oy]) in offsets.iter().enumerate() {
-                        let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
-                        let sample = pixel * per_pixel + k;
-                        match self.exposure {
-                            Exposure::Instant(_) => scratch.nearer(sample, &placed, d, index),
-                            Exposure::Shutter => {
-                                // Only a full list's resolve cuts intervals here, rarely: their
-                                // items' depth functions are worked out again.
-                                let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
-                                    self.depth_pieces_of(interval, d, &TileDepths::default(), out);
-                                };
-                                scratch.insert(sample, &placed, d, index, depth, &pieces, stats);
+                let placed = self.triangle(item);
+                if cut_later {
+                    scratch.depths.0.push((index, placed.depth));
+                }
+                self.cover_samples(index, &placed, &grid, depth, scratch, stats);
+            }
+        }
+        scratch.depths.0.sort_unstable_by_key(|&(index, _)| index);
+    }
+
+    /// Insert item `index` (`placed`) into the lists (or the z-buffer) of the samples of the
+    /// tile it may cover.
+    fn cover_samples(
+        &self,
+        index: u32,
+        placed: &Placed,
+        grid: &SampleGrid,
+        depth: DepthPieces,
+        scratch: &mut Scratch,
+        stats: &mut TriangleStats,
+    ) {
+        let camera = &self.camera;
+        let SampleGrid {
+            bounds: [x0, y0, x1, y1],
+            offsets,
+            spread: [ox0, oy0, ox1, oy1],
+        } = *grid;
+        let w = (x1 - x0) as usize;
+        let per_pixel = offsets.len();
+        let [ix0, iy0, ix1, iy1] = self.items[index as usize].bounds;
+        // A moving triangle covers samples within the hull of its corners' screen paths
+        // only; the rest of its bounds are skipped a row at a time.
+        let hull = (!placed.still)
+            .then(|| screen_corners(camera, &placed.triangle, placed.window))
+            .flatten()
+            .map(|corners| ScreenHull::new(&corners));
+        let nearest = placed.triangle.nearest_depth();
+        for y in iy0.max(y0)..iy1.min(y1) {
+            let (mut from, mut to) = (ix0.max(x0), ix1.min(x1));
+            if let Some(hull) = &hull {
+                let Some([lo, hi]) = hull.x_range(f64::from(y) + oy0, f64::from(y) + oy1) else {
+                    continue;
+                };
+                let pixel = |x: f64| x.clamp(0.0, f64::from(u32::MAX)) as u32;
+                from = from.max(pixel((lo - ox1 - HULL_MARGIN_PX).ceil()));
+                to = to.min(pixel((hi - ox0 + HULL_MARGIN_PX).floor() + 1.0));
+            }
+            for x in from..to {
+                let pixel = (y - y0) as usize * w + (x - x0) as usize;
+                for (k, [ox, oy]) in offsets.iter().enumerate() {
+                    let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
+                    let sample = pixel * per_pixel + k;
+                    match self.exposure {
+                        Exposure::Instant(_) => scratch.nearer(sample, placed, d, index),
+                        Exposure::Shutter => {
+                            if nearest > scratch.covered_all_along[sample] {
+                                stats.hidden_behind_still += 1;
+                                continue;
                             }
+                            // Only a full list's resolve cuts intervals here, rarely: their
+                            // items' depth functions are worked out again.
+                            let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
+                                self.depth_pieces_of(interval, d, &TileDepths::default(), out);
+                            };
+                            scratch.insert(sample, placed, d, index, depth, &pieces, stats);
                         }
                     }
                 }
@@ -1525,6 +1563,35 @@ impl SurfacePoint {
     }
 }
 
+/// A tile's samples: its pixels and the samples' offsets within each.
+#[derive(Clone, Copy)]
+struct SampleGrid<'o> {
+    /// Pixel bounds [x0, y0, x1, y1).
+    bounds: [u32; 4],
+    offsets: &'o [[f64; 2]],
+    /// The box the offsets span, [x0, y0, x1, y1].
+    spread: [f64; 4],
+}
+
+impl<'o> SampleGrid<'o> {
+    fn new(bounds: [u32; 4], offsets: &'o [[f64; 2]]) -> SampleGrid<'o> {
+        let spread = offsets.iter().fold(
+            [
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ],
+            |[x0, y0, x1, y1], &[x, y]| [x0.min(x), y0.min(y), x1.max(x), y1.max(y)],
+        );
+        SampleGrid {
+            bounds,
+            offsets,
+            spread,
+        }
+    }
+}
+
 /// The depth functions of a tile's items, in its list's (ascending) order: what a sample's
 /// interval needs to be cut into depth pieces or bounded in depth.
 #[derive(Default)]
@@ -1582,6 +1649,9 @@ struct Scratch {
     nearest: Vec<Option<(f64, u32)>>,
     /// `Shutter`: the interval list per sample.
     lists: Vec<Vec<Interval>>,
+    /// `Shutter`: per sample, the depth of the nearest still triangle covering it all along
+    /// (+∞ while there is none).
+    covered_all_along: Vec<f64>,
     resolving: ResolveScratch,
     visible: Vec<Interval>,
     covered: Vec<[f64; 2]>,
@@ -1603,6 +1673,8 @@ impl Scratch {
         for list in &mut self.lists[..samples] {
             list.clear();
         }
+        self.covered_all_along.clear();
+        self.covered_all_along.resize(samples, f64::INFINITY);
     }
 
     /// Z-buffer test at an instant: keep `item` at `sample` if it covers it nearer.
@@ -1655,6 +1727,10 @@ impl Scratch {
                 .then(|| triangle.depth(d, 0.0))
                 .flatten()
             {
+                if placed.all_along {
+                    let nearest = &mut self.covered_all_along[sample];
+                    *nearest = nearest.min(z);
+                }
                 let interval = Interval {
                     t: [t0 + (t1 - t0) * window[0], t0 + (t1 - t0) * window[1]],
                     depth: [z, z],

@@ -157,6 +157,16 @@ impl MovingTriangle {
         }
     }
 
+    /// The least depth (camera-space −z) any of its points reaches over the segment: its
+    /// corners' least at either end, since every point is a weighted mean of the corners and
+    /// they move linearly.
+    #[must_use]
+    pub fn nearest_depth(&self) -> f64 {
+        (0..3)
+            .map(|k| (-self.start[k].z).min(-(self.start[k] + self.delta[k]).z))
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// [`MovingTriangle::ray_hit`] for a triangle whose corners share everything the weights
     /// would blend (one normal, one colour): its depth and side from the plane alone, and the
     /// centroid's weights.
