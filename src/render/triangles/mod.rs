@@ -947,6 +947,37 @@ impl<'a> Prepared<'a> {
         (weight > 0.0).then(|| sum.map(|c| c / weight))
     }
 
+    /// The colour of a still receiver (`item` met at `hit`, at segment fraction `s`) over
+    /// `span`, where no shadow map can darken it: each shadowing light faces away from it or
+    /// lights it for sure. `None` where one may shadow it.
+    fn surely_lit_colour(
+        &self,
+        item: &Item,
+        hit: &RayHit,
+        d: DVec3,
+        s: f64,
+        span: [f64; 2],
+    ) -> Option<[f64; 3]> {
+        let (normal, point) = self.surface_with(item, hit, d, s);
+        let own = self.shadow_id(item);
+        let mut maps = self.shadows.iter();
+        for source in self.sources.iter().filter(|source| source.shadows()) {
+            let map = maps.next()?;
+            let away = normal.dot(source.towards(point)) <= 0.0;
+            let receiver = Receiver {
+                path: [point; 2],
+                normal,
+                span,
+                own,
+            };
+            if !(away || map.surely_lit(&receiver)) {
+                return None;
+            }
+        }
+        let irradiance = self.irradiance(normal, point, &[1.0; MAX_SHADOWED_LIGHTS]);
+        Some(self.albedo_with(item, hit.weights).map(|c| c * irradiance))
+    }
+
     /// Mean colour of a visible piece, weighted by the shutter. The piece is cut where the
     /// surface turns towards or away from a light (eq. 2.5: N·L, quadratic in time, through its
     /// values at the piece's ends and middle) and where a shadow can start or end (exact for a
@@ -970,6 +1001,12 @@ impl<'a> Prepared<'a> {
             return self.shade(item, &triangle, d, 0.0, segment.time[0]);
         }
         let span = piece.t;
+        if segment.still {
+            let hit = self.hit(item, &triangle, d, fraction(span[0]));
+            if let Some(colour) = self.surely_lit_colour(item, &hit, d, fraction(span[0]), span) {
+                return colour;
+            }
+        }
         let own = self.shadow_id(item);
         // The receiver between the piece's ends: its point and normal interpolated linearly in
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
