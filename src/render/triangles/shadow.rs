@@ -291,8 +291,8 @@ impl ShadowMap {
             return true;
         }
         let tile_px = crate::raster::TILE_PX;
-        (y0 / tile_px..=(y1 - 1) / tile_px).all(|ty| {
-            (x0 / tile_px..=(x1 - 1) / tile_px).all(|tx| {
+        (y0 / tile_px..(y1 - 1) / tile_px + 1).all(|ty| {
+            (x0 / tile_px..(x1 - 1) / tile_px + 1).all(|tx| {
                 let tile = self.tile_of(tx * tile_px, ty * tile_px);
                 f64::from(self.nearest_in_tile[tile].except(own)) >= depth
             })
