@@ -947,19 +947,15 @@ impl<'a> Prepared<'a> {
         (weight > 0.0).then(|| sum.map(|c| c / weight))
     }
 
-    /// The colour of a still receiver (`item` met at `hit`, at segment fraction `s`) over
+    /// The irradiance of a still receiver (its `normal` and `point`, on triangle `own`) over
     /// `span`, where no shadow map can darken it: each shadowing light faces away from it or
     /// lights it for sure. `None` where one may shadow it.
-    fn surely_lit_colour(
+    fn surely_lit_irradiance(
         &self,
-        item: &Item,
-        hit: &RayHit,
-        d: DVec3,
-        s: f64,
+        (normal, point): (DVec3, DVec3),
         span: [f64; 2],
-    ) -> Option<[f64; 3]> {
-        let (normal, point) = self.surface_with(item, hit, d, s);
-        let own = self.shadow_id(item);
+        own: (u32, u32),
+    ) -> Option<f64> {
         let mut maps = self.shadows.iter();
         for source in self.sources.iter().filter(|source| source.shadows()) {
             let map = maps.next()?;
@@ -974,8 +970,7 @@ impl<'a> Prepared<'a> {
                 return None;
             }
         }
-        let irradiance = self.irradiance(normal, point, &[1.0; MAX_SHADOWED_LIGHTS]);
-        Some(self.albedo_with(item, hit.weights).map(|c| c * irradiance))
+        Some(self.irradiance(normal, point, &[1.0; MAX_SHADOWED_LIGHTS]))
     }
 
     /// Mean colour of a visible piece, weighted by the shutter. The piece is cut where the
@@ -1001,12 +996,6 @@ impl<'a> Prepared<'a> {
             return self.shade(item, &triangle, d, 0.0, segment.time[0]);
         }
         let span = piece.t;
-        if segment.still {
-            let hit = self.hit(item, &triangle, d, fraction(span[0]));
-            if let Some(colour) = self.surely_lit_colour(item, &hit, d, fraction(span[0]), span) {
-                return colour;
-            }
-        }
         let own = self.shadow_id(item);
         // The receiver between the piece's ends: its point and normal interpolated linearly in
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
@@ -1014,6 +1003,13 @@ impl<'a> Prepared<'a> {
         // moving in depth, far below a pixel over one piece.
         let first = self.hit(item, &triangle, d, fraction(span[0]));
         let start = self.surface_with(item, &first, d, fraction(span[0]));
+        if segment.still {
+            if let Some(irradiance) = self.surely_lit_irradiance(start, span, own) {
+                return self
+                    .albedo_with(item, first.weights)
+                    .map(|c| c * irradiance);
+            }
+        }
         let ends = if segment.still {
             [start; 2]
         } else {
