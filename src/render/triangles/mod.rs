@@ -736,7 +736,8 @@ impl<'a> Prepared<'a> {
                         // Surfels behind this depth are left out: past the line's ends where the
                         // depth bends.
                         let deepest = if self.occludes_surfels {
-                            (self.depth_range(piece, d, depths)).map_or(ends, |range| range[1])
+                            self.depth_range(piece, d, depths)
+                                .map_or(ends, |range| range[1])
                         } else {
                             ends
                         };

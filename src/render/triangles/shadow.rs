@@ -252,8 +252,9 @@ impl ShadowMap {
     }
 
     /// The map with each texel's and each tile's nearest occluders over all time, which the
-    /// lit-for-sure tests read. Over a shutter only: at an instant receivers look up their
-    /// visibility alone, and a reference frame would pay for a million texels it never reads.
+    /// lit-for-sure tests read (texel records only in tiles that hold occluders). Over a shutter
+    /// only: at an instant receivers look up their visibility alone, and a reference frame would
+    /// pay for records it never reads.
     #[must_use]
     pub fn summarised(mut self) -> ShadowMap {
         let nearest: Vec<Vec<Nearest>> = self

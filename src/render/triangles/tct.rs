@@ -125,10 +125,7 @@ impl MovingTriangle {
     /// at s: (n·a)/(n·d). `None` when the plane is edge-on to the ray or not in front.
     #[must_use]
     pub fn depth(&self, d: DVec3, s: f64) -> Option<f64> {
-        let [a, b, c] = self.at(s);
-        let n = (b - a).cross(c - a);
-        let depth = n.dot(a) / n.dot(d);
-        (depth.is_finite() && depth > 0.0).then_some(depth)
+        self.plane_hit(d, s).depth
     }
 
     /// Where the ray `d` (whose depth component is 1) meets the triangle's plane at s.
@@ -168,8 +165,8 @@ impl MovingTriangle {
     }
 
     /// [`MovingTriangle::ray_hit`] for a triangle whose corners share everything the weights
-    /// would blend (one normal, one colour): its depth and side from the plane alone, and the
-    /// centroid's weights.
+    /// would blend (one normal, one colour): its depth, (n·a)/(n·d) with n = (b − a) × (c − a),
+    /// and its side from the plane alone, and the centroid's weights.
     #[must_use]
     #[inline]
     pub fn plane_hit(&self, d: DVec3, s: f64) -> RayHit {
