@@ -215,6 +215,17 @@ pub fn quadratic_roots(a: f64, b: f64, c: f64) -> ([f64; 2], usize) {
     ([x0.min(x1), x0.max(x1)], 2)
 }
 
+/// Whether as² + bs + c surely has no root in [s0, s1]: it is nonzero with one sign at both ends
+/// and monotone between them (its slope 2as + b has one sign at both ends). Most quadratics of a
+/// short span pass this test, and skip the square root and divisions of [`quadratic_roots`].
+#[must_use]
+#[inline]
+pub fn keeps_sign(a: f64, b: f64, c: f64, [s0, s1]: [f64; 2]) -> bool {
+    let value = |s: f64| (a * s + b) * s + c;
+    let slope = |s: f64| 2.0 * a * s + b;
+    value(s0) * value(s1) > 0.0 && slope(s0) * slope(s1) > 0.0
+}
+
 /// A Morton (Z-order) curve through a bounding cube, 21 bits per axis: points near each other
 /// in space mostly get keys near each other, so data sorted by key is read with fewer cache
 /// misses when a computation walks the surface.
@@ -320,6 +331,33 @@ mod tests {
             );
             assert!(a.dot(b).abs() < 1e-12 && a.length() >= b.length());
         }
+    }
+
+    #[test]
+    fn a_quadratic_that_keeps_its_sign_has_no_root_in_the_span() {
+        // (s − r)(s − q) over [0, 1] for roots on a grid inside, at and beyond its ends.
+        let grid = [-1.5, -0.25, 0.0, 0.1, 0.5, 0.9, 1.0, 1.25, 2.0];
+        for &r in &grid {
+            for &q in &grid {
+                let (a, b, c) = (1.0, -(r + q), r * q);
+                let root_within = [r, q].iter().any(|x| (0.0..=1.0).contains(x));
+                if root_within {
+                    assert!(!keeps_sign(a, b, c, [0.0, 1.0]), "roots {r}, {q}");
+                }
+                // Scaled by −2 the roots stay.
+                assert_eq!(
+                    keeps_sign(a, b, c, [0.0, 1.0]),
+                    keeps_sign(-2.0 * a, -2.0 * b, -2.0 * c, [0.0, 1.0])
+                );
+            }
+        }
+        // Both roots beyond the same end, monotone over the span: passes.
+        assert!(keeps_sign(1.0, -(2.0 + 3.0), 6.0, [0.0, 1.0]));
+        // A dip between the ends that stays above zero is not monotone: it is left to the roots.
+        assert!(!keeps_sign(1.0, -1.0, 1.0, [0.0, 1.0]));
+        // A line (a = 0) with its root outside passes; one with its root inside does not.
+        assert!(keeps_sign(0.0, 1.0, 0.5, [0.0, 1.0]));
+        assert!(!keeps_sign(0.0, 1.0, -0.5, [0.0, 1.0]));
     }
 
     #[test]

@@ -58,11 +58,14 @@ fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>
         -3.0 * f0 + 4.0 * fm - f1,
         f0,
     );
-    let (roots, n) = crate::math::quadratic_roots(a, b, c);
     let before = cuts.len();
-    for &u in &roots[..n] {
-        if u > 0.0 && u < 1.0 {
-            cuts.push(span[0] + u * (span[1] - span[0]));
+    // A piece mostly turns without crossing edge-on.
+    if !crate::math::keeps_sign(a, b, c, [0.0, 1.0]) {
+        let (roots, n) = crate::math::quadratic_roots(a, b, c);
+        for &u in &roots[..n] {
+            if u > 0.0 && u < 1.0 {
+                cuts.push(span[0] + u * (span[1] - span[0]));
+            }
         }
     }
     cuts.len() == before && f0.max(fm).max(f1) <= 0.0
@@ -576,12 +579,19 @@ impl<'a> Prepared<'a> {
                 }
                 let placed = self.triangle(item);
                 if cut_later {
-                    scratch.depths.0.push((index, placed.depth));
+                    scratch.depths.0.push(TileItem {
+                        index,
+                        depth: placed.depth,
+                        plain: item.plain.then(|| PlainFace {
+                            normals: self.world_normals(item, [1.0 / 3.0; 3]),
+                            albedo: self.albedo_with(item, [1.0 / 3.0; 3]),
+                        }),
+                    });
                 }
                 self.cover_samples(index, &placed, &grid, depth, scratch, stats);
             }
         }
-        scratch.depths.0.sort_unstable_by_key(|&(index, _)| index);
+        scratch.depths.0.sort_unstable_by_key(|entry| entry.index);
     }
 
     /// Insert item `index` (`placed`) into the lists (or the z-buffer) of the samples of the
@@ -825,14 +835,12 @@ impl<'a> Prepared<'a> {
         } = work;
         ends.clear();
         for (i, piece) in run.iter().enumerate() {
-            let item = &self.items[piece.item as usize];
-            let triangle = self.corners(item);
-            let [t0, t1] = self.segment(item).time;
-            let fraction = |t: f64| if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-            ends.push(self.surface_point(item, &triangle, d, fraction(piece.t[0])));
-            if i + 1 == run.len() {
-                ends.push(self.surface_point(item, &triangle, d, fraction(piece.t[1])));
-            }
+            let times = if i + 1 == run.len() {
+                &piece.t[..]
+            } else {
+                &piece.t[..1]
+            };
+            self.surface_points(piece.item, d, depths, times, ends);
         }
         let ends = &ends[..];
         let time = |i: usize| run.get(i).map_or(run[run.len() - 1].t[1], |p| p.t[0]);
@@ -1199,13 +1207,16 @@ impl<'a> Prepared<'a> {
         d: DVec3,
         depths: &TileDepths,
     ) -> Option<(RayDepth, [f64; 2], [f64; 2])> {
+        if !interval.bends {
+            return None;
+        }
         let item = &self.items[interval.item as usize];
         let time @ [t0, t1] = self.segment(item).time;
-        if !interval.bends || !(t1 > t0) {
+        if !(t1 > t0) {
             return None;
         }
         let along = match depths.of(interval.item) {
-            Some(function) => function.along(d),
+            Some(entry) => entry.depth.along(d),
             None => self.corners(item).depth_function().along(d),
         };
         Some((along, interval.t.map(|t| (t - t0) / (t1 - t0)), time))
@@ -1242,27 +1253,57 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// [`Prepared::surface`] and [`Prepared::albedo`] at once.
-    fn surface_point(
+    /// [`Prepared::surface`] and [`Prepared::albedo`] at once, where the ray `d` meets item
+    /// `index` at each of `times` (within its segment), appended to `out`. A plain item is met
+    /// from the tile's polynomials of its plane (three dot products for all its times) rather
+    /// than from its corners at each time.
+    fn surface_points(
         &self,
-        item: &Item,
-        triangle: &MovingTriangle,
+        index: u32,
         d: DVec3,
-        s: f64,
-    ) -> SurfacePoint {
-        let hit = self.hit(item, triangle, d, s);
-        let (normal, point) = self.surface_with(item, &hit, d, s);
-        SurfacePoint {
-            normal,
-            point,
-            albedo: self.albedo_with(item, hit.weights),
+        depths: &TileDepths,
+        times: &[f64],
+        out: &mut Vec<SurfacePoint>,
+    ) {
+        let item = &self.items[index as usize];
+        let [t0, t1] = self.segment(item).time;
+        let plain = depths
+            .of(index)
+            .and_then(|entry| Some((entry.depth.along(d), entry.plain?)));
+        let mut triangle = None;
+        for &t in times {
+            let s = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+            let ((normal, point), albedo) = match &plain {
+                Some((plane, face)) => (
+                    self.oriented(&plane.plane_hit(s), d, s, face.normals),
+                    face.albedo,
+                ),
+                None => {
+                    let triangle = triangle.get_or_insert_with(|| self.corners(item));
+                    let hit = self.hit(item, triangle, d, s);
+                    (
+                        self.surface_with(item, &hit, d, s),
+                        self.albedo_with(item, hit.weights),
+                    )
+                }
+            };
+            out.push(SurfacePoint {
+                normal,
+                point,
+                albedo,
+            });
         }
     }
 
     /// The shading normal and world point where the ray `d` meets `item` at segment fraction
     /// `s`, at `hit`.
     fn surface_with(&self, item: &Item, hit: &RayHit, d: DVec3, s: f64) -> (DVec3, DVec3) {
-        let weights = hit.weights;
+        self.oriented(hit, d, s, self.world_normals(item, hit.weights))
+    }
+
+    /// The shading normal of `item` at barycentric `weights` in world space, at its segment's
+    /// ends.
+    fn world_normals(&self, item: &Item, weights: [f64; 3]) -> [DVec3; 2] {
         let (_, mesh, _) = &self.objects[item.object as usize];
         let normals = mesh.normals[item.triangle as usize];
         let local: DVec3 = if item.plain {
@@ -1270,8 +1311,13 @@ impl<'a> Prepared<'a> {
         } else {
             (0..3).map(|k| normals[k] * weights[k]).sum()
         };
-        let [r0, r1] = self.segment(item).rotation;
-        let mut world = (r0 * local).lerp(r1 * local, s).normalize_or_zero();
+        self.segment(item).rotation.map(|r| r * local)
+    }
+
+    /// The shading normal at segment fraction `s` between the world `normals` at its ends, on
+    /// the side of `hit`, and the world point of `hit` on the ray `d`.
+    fn oriented(&self, hit: &RayHit, d: DVec3, s: f64, [n0, n1]: [DVec3; 2]) -> (DVec3, DVec3) {
+        let mut world = n0.lerp(n1, s).normalize_or_zero();
         // Both sides are drawn, and the side the ray meets turns the normal: not the shading
         // normal's own direction, which near a smooth mesh's silhouette faces away from the eye
         // on triangles that face it, and flipped would be lit from inside.
@@ -1626,19 +1672,34 @@ impl<'o> SampleGrid<'o> {
     }
 }
 
-/// The depth functions of a tile's items, in its list's (ascending) order: what a sample's
-/// interval needs to be cut into depth pieces or bounded in depth.
+/// What a tile's samples reuse of its items, in its list's (ascending) order.
 #[derive(Default)]
-struct TileDepths(Vec<(u32, DepthFunction)>);
+struct TileDepths(Vec<TileItem>);
 
 impl TileDepths {
-    fn of(&self, item: u32) -> Option<&DepthFunction> {
+    fn of(&self, item: u32) -> Option<&TileItem> {
         let at = self
             .0
-            .binary_search_by_key(&item, |(index, _)| *index)
+            .binary_search_by_key(&item, |entry| entry.index)
             .ok()?;
-        Some(&self.0[at].1)
+        Some(&self.0[at])
     }
+}
+
+/// One item of a tile, as its samples reuse it.
+struct TileItem {
+    index: u32,
+    /// What a sample's interval needs to be cut into depth pieces or bounded in depth.
+    depth: DepthFunction,
+    /// For a plain item, its shading, the same at every sample.
+    plain: Option<PlainFace>,
+}
+
+/// A plain item's world shading normals at its segment's ends, and its colour.
+#[derive(Clone, Copy)]
+struct PlainFace {
+    normals: [DVec3; 2],
+    albedo: [f64; 3],
 }
 
 /// Working memory of a run's shading, reused from run to run.

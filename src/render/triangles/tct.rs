@@ -7,7 +7,7 @@
 //! The visible depth along the ray is the rational function λ(s) = (n·a)/(n·d) with
 //! n = (b − a) × (c − a), cubic over quadratic; docs/math.md, "Time-continuous triangles".
 
-use crate::math::quadratic_roots;
+use crate::math::{keeps_sign, quadratic_roots};
 use glam::DVec3;
 
 /// Most pieces a covered interval's depth is cut into where a line does not follow it.
@@ -254,6 +254,18 @@ impl RayDepth {
         self.refine([first, last], tolerance, MAX_DEPTH_PIECES, knot)
     }
 
+    /// [`MovingTriangle::plane_hit`] at s from the polynomials: the same depth and side (up to
+    /// rounding), without the corners.
+    #[must_use]
+    pub fn plane_hit(&self, s: f64) -> RayHit {
+        let [q0, q1, q2] = self.denominator;
+        RayHit {
+            weights: [1.0 / 3.0; 3],
+            depth: self.at(s),
+            back: (q2 * s + q1) * s + q0 > 0.0,
+        }
+    }
+
     /// The depth at s0 and s1, and whether [`RayDepth::knots`] would cut [s0, s1] (the line
     /// between them misses the depth at the middle by more than `tolerance` × the depth).
     /// `None` when the depth is undefined at one of the three.
@@ -353,12 +365,8 @@ impl EdgeFunctions {
         let coefficients = self.0.map(|e| [d.dot(e.a), d.dot(e.b), d.dot(e.c)]);
         let [w0, w1] = window;
         for [a, b, c] in coefficients {
-            // Most edges keep one sign over the window: nonzero at both ends with one sign, and
-            // monotone between them (its slope 2as + b of one sign at both ends), an edge has
-            // no root inside, and the square root and divisions are skipped.
-            let value = |s: f64| (a * s + b) * s + c;
-            let slope = |s: f64| 2.0 * a * s + b;
-            if value(w0) * value(w1) > 0.0 && slope(w0) * slope(w1) > 0.0 {
+            // Most edges keep one sign over the window.
+            if keeps_sign(a, b, c, window) {
                 continue;
             }
             let (roots, count) = quadratic_roots(a, b, c);
@@ -554,11 +562,15 @@ mod tests {
         let triangle = turning_in_depth();
         for (x, y) in [(0.0, 0.0), (0.05, 0.1), (-0.1, -0.05), (2.0, 3.0)] {
             let d = DVec3::new(x, y, -1.0);
+            let along = triangle.depth_function().along(d);
             for s in [0.0, 0.3, 0.7, 1.0] {
-                let (full, plane) = (triangle.ray_hit(d, s), triangle.plane_hit(d, s));
-                assert_eq!(full.back, plane.back);
-                let (z, z_plane) = (full.depth.unwrap(), plane.depth.unwrap());
-                assert!((z - z_plane).abs() <= 1e-12 * z, "{z} {z_plane}");
+                let full = triangle.ray_hit(d, s);
+                // From the corners at s, and from the plane's polynomials in s.
+                for plane in [triangle.plane_hit(d, s), along.plane_hit(s)] {
+                    assert_eq!(full.back, plane.back);
+                    let (z, z_plane) = (full.depth.unwrap(), plane.depth.unwrap());
+                    assert!((z - z_plane).abs() <= 1e-12 * z, "{z} {z_plane}");
+                }
             }
         }
         // Seen from behind, the side flips.
@@ -570,6 +582,10 @@ mod tests {
         assert_ne!(
             triangle.plane_hit(d, 0.5).back,
             flipped.plane_hit(d, 0.5).back
+        );
+        assert_ne!(
+            triangle.depth_function().along(d).plane_hit(0.5).back,
+            flipped.depth_function().along(d).plane_hit(0.5).back
         );
     }
 
