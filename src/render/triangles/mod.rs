@@ -565,7 +565,7 @@ impl<'a> Prepared<'a> {
         let samples = ((x1 - x0) * (y1 - y0)) as usize * offsets.len();
         scratch.reset(samples);
         let grid = SampleGrid::new(bounds, offsets);
-        scratch.depths.0.clear();
+        scratch.depths.clear(self.items.len());
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
         // Still items first: where one covers a sample all along, a later item lying wholly
         // deeper than it there can never be seen, and is left out before its coverage is
@@ -579,7 +579,7 @@ impl<'a> Prepared<'a> {
                 }
                 let placed = self.triangle(item);
                 if cut_later {
-                    scratch.depths.0.push(TileItem {
+                    scratch.depths.push(TileItem {
                         index,
                         depth: placed.depth,
                         plain: item.plain.then(|| PlainFace {
@@ -591,7 +591,6 @@ impl<'a> Prepared<'a> {
                 self.cover_samples(index, &placed, &grid, depth, scratch, stats);
             }
         }
-        scratch.depths.0.sort_unstable_by_key(|entry| entry.index);
     }
 
     /// Insert item `index` (`placed`) into the lists (or the z-buffer) of the samples of the
@@ -1672,17 +1671,37 @@ impl<'o> SampleGrid<'o> {
     }
 }
 
-/// What a tile's samples reuse of its items, in its list's (ascending) order.
+/// What a tile's samples reuse of its items, found by item index in constant time (a sample's
+/// run looks up each of its pieces' items twice).
 #[derive(Default)]
-struct TileDepths(Vec<TileItem>);
+struct TileDepths {
+    entries: Vec<TileItem>,
+    /// Per item of the image, its place in `entries`, or [`NOT_IN_TILE`].
+    slots: Vec<u32>,
+}
+
+/// A [`TileDepths`] slot of an item the tile does not hold.
+const NOT_IN_TILE: u32 = u32::MAX;
 
 impl TileDepths {
+    /// Empty, for a tile among `items` items.
+    fn clear(&mut self, items: usize) {
+        for entry in &self.entries {
+            self.slots[entry.index as usize] = NOT_IN_TILE;
+        }
+        self.entries.clear();
+        if self.slots.len() < items {
+            self.slots.resize(items, NOT_IN_TILE);
+        }
+    }
+
+    fn push(&mut self, entry: TileItem) {
+        self.slots[entry.index as usize] = self.entries.len() as u32;
+        self.entries.push(entry);
+    }
+
     fn of(&self, item: u32) -> Option<&TileItem> {
-        let at = self
-            .0
-            .binary_search_by_key(&item, |entry| entry.index)
-            .ok()?;
-        Some(&self.0[at])
+        self.entries.get(*self.slots.get(item as usize)? as usize)
     }
 }
 
