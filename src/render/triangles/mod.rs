@@ -565,8 +565,9 @@ impl<'a> Prepared<'a> {
         let samples = ((x1 - x0) * (y1 - y0)) as usize * offsets.len();
         scratch.reset(samples);
         let grid = SampleGrid::new(bounds, offsets);
-        scratch.depths.clear(self.items.len());
+        scratch.tile.clear(self.items.len());
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
+        let mut depth_bounds = [f64::INFINITY, f64::NEG_INFINITY];
         // Still items first: where one covers a sample all along, a later item lying wholly
         // deeper than it there can never be seen, and is left out before its coverage is
         // solved (a floor or a still occluder hides what passes behind it, as a shadow map's
@@ -579,7 +580,9 @@ impl<'a> Prepared<'a> {
                 }
                 let placed = self.triangle(item);
                 if cut_later {
-                    scratch.depths.push(TileItem {
+                    let [near, far] = self.depth_bounds_within(&placed, bounds);
+                    depth_bounds = [depth_bounds[0].min(near), depth_bounds[1].max(far)];
+                    scratch.tile.push(TileItem {
                         index,
                         depth: placed.depth,
                         plain: item.plain.then(|| PlainFace {
@@ -591,6 +594,54 @@ impl<'a> Prepared<'a> {
                 self.cover_samples(index, &placed, &grid, depth, scratch, stats);
             }
         }
+        if cut_later {
+            scratch.tile.unshadowed = self.unshadowed(bounds, depth_bounds);
+        }
+    }
+
+    /// Bounds on the depth of `placed` where the rays through pixels `[x0, y0, x1, y1)` meet it:
+    /// its corners' over its segment, or, still, its plane's over the tile's rays
+    /// ([`MovingTriangle::plane_depths_within`]) where they are tighter.
+    fn depth_bounds_within(&self, placed: &Placed, [x0, y0, x1, y1]: [u32; 4]) -> [f64; 2] {
+        let bounds = placed.triangle.depth_bounds();
+        let rays = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
+            .map(|(x, y)| self.camera.ray(f64::from(x), f64::from(y)));
+        match placed
+            .still
+            .then(|| placed.triangle.plane_depths_within(rays))
+        {
+            Some(Some(plane)) => [bounds[0].max(plane[0]), bounds[1].min(plane[1])],
+            _ => bounds,
+        }
+    }
+
+    /// Per shadow map, whether it holds no occluder in any texel that a receiver seen through
+    /// pixels `[x0, y0, x1, y1)` at a depth within `[near, far]` can read. Such receivers lie in
+    /// the frustum piece between those depths, the convex hull of its eight corners, which
+    /// [`ShadowMap::empty_around`] tests at once for the whole tile: where it holds, no sample
+    /// of the tile walks the map to find that it is lit.
+    fn unshadowed(
+        &self,
+        [x0, y0, x1, y1]: [u32; 4],
+        [near, far]: [f64; 2],
+    ) -> [bool; MAX_SHADOWED_LIGHTS] {
+        let mut unshadowed = [false; MAX_SHADOWED_LIGHTS];
+        let near = near.max(self.camera.near);
+        if !(far >= near && far.is_finite()) {
+            return unshadowed;
+        }
+        let mut corners = [DVec3::ZERO; 8];
+        for (k, corner) in corners.iter_mut().enumerate() {
+            let x = if k & 1 == 0 { x0 } else { x1 };
+            let y = if k & 2 == 0 { y0 } else { y1 };
+            let depth = if k & 4 == 0 { near } else { far };
+            let d = self.camera.ray(f64::from(x), f64::from(y));
+            *corner = self.view_to_world.transform_point3(d * depth);
+        }
+        for (clear, map) in unshadowed.iter_mut().zip(&self.shadows) {
+            *clear = map.empty_around(&corners);
+        }
+        unshadowed
     }
 
     /// Insert item `index` (`placed`) into the lists (or the z-buffer) of the samples of the
@@ -619,7 +670,7 @@ impl<'a> Prepared<'a> {
             .then(|| screen_corners(camera, &placed.triangle, placed.window))
             .flatten()
             .map(|corners| ScreenHull::new(&corners));
-        let nearest = placed.triangle.nearest_depth();
+        let [nearest, _] = placed.triangle.depth_bounds();
         for y in iy0.max(y0)..iy1.min(y1) {
             let (mut from, mut to) = (ix0.max(x0), ix1.min(x1));
             if let Some(hull) = &hull {
@@ -645,7 +696,7 @@ impl<'a> Prepared<'a> {
                             // Only a full list's resolve cuts intervals here, rarely: their
                             // items' depth functions are worked out again.
                             let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
-                                self.depth_pieces_of(interval, d, &TileDepths::default(), out);
+                                self.depth_pieces_of(interval, d, &TileShared::default(), out);
                             };
                             scratch.insert(sample, placed, d, index, depth, &pieces, stats);
                         }
@@ -714,12 +765,12 @@ impl<'a> Prepared<'a> {
                     resolving,
                     visible,
                     shading,
-                    depths,
+                    tile,
                     ..
                 } = scratch;
                 visible.clear();
                 resolve(&lists[sample], resolving, visible, |interval, out| {
-                    self.depth_pieces_of(interval, d, depths, out);
+                    self.depth_pieces_of(interval, d, tile, out);
                 });
                 let shutter = &self.scene.shutter;
                 let mut colour = [0.0f64; 3];
@@ -735,7 +786,7 @@ impl<'a> Prepared<'a> {
                     if !(mass > 0.0) {
                         continue;
                     }
-                    let mean = self.run_colour(run, d, shading, depths, stats);
+                    let mean = self.run_colour(run, d, shading, tile, stats);
                     for c in 0..3 {
                         colour[c] += mass * mean[c];
                     }
@@ -745,7 +796,7 @@ impl<'a> Prepared<'a> {
                         // Surfels behind this depth are left out: past the line's ends where the
                         // depth bends.
                         let deepest = if self.occludes_surfels {
-                            self.depth_range(piece, d, depths)
+                            self.depth_range(piece, d, tile)
                                 .map_or(ends, |range| range[1])
                         } else {
                             ends
@@ -776,15 +827,15 @@ impl<'a> Prepared<'a> {
         run: &[Interval],
         d: DVec3,
         work: &mut ShadingScratch,
-        depths: &TileDepths,
+        tile: &TileShared,
         stats: &mut TriangleStats,
     ) -> [f64; 3] {
         stats.runs += 1;
         if let [piece @ Interval { bends: false, .. }] = run {
             stats.pieces += 1;
-            return self.piece_colour(piece, d, &mut work.cuts, stats);
+            return self.piece_colour(piece, d, &mut work.cuts, tile.unshadowed, stats);
         }
-        if let Some(colour) = self.lit_run_colour(run, d, work, depths) {
+        if let Some(colour) = self.lit_run_colour(run, d, work, tile) {
             stats.pieces += run.len();
             stats.joined_runs += usize::from(run.len() > 1);
             return colour;
@@ -792,7 +843,7 @@ impl<'a> Prepared<'a> {
         let mut pieces = std::mem::take(&mut work.pieces);
         pieces.clear();
         for piece in run {
-            self.depth_pieces_of(piece, d, depths, &mut pieces);
+            self.depth_pieces_of(piece, d, tile, &mut pieces);
         }
         let (mut sum, mut mass) = ([0.0; 3], 0.0);
         for piece in &pieces {
@@ -801,7 +852,7 @@ impl<'a> Prepared<'a> {
                 continue;
             }
             stats.pieces += 1;
-            let mean = self.piece_colour(piece, d, &mut work.cuts, stats);
+            let mean = self.piece_colour(piece, d, &mut work.cuts, tile.unshadowed, stats);
             for c in 0..3 {
                 sum[c] += m * mean[c];
             }
@@ -827,7 +878,7 @@ impl<'a> Prepared<'a> {
         run: &[Interval],
         d: DVec3,
         work: &mut ShadingScratch,
-        depths: &TileDepths,
+        tile: &TileShared,
     ) -> Option<[f64; 3]> {
         let ShadingScratch {
             cuts, ends, ranges, ..
@@ -839,7 +890,7 @@ impl<'a> Prepared<'a> {
             } else {
                 &piece.t[..1]
             };
-            self.surface_points(piece.item, d, depths, times, ends);
+            self.surface_points(piece.item, d, tile, times, ends);
         }
         let ends = &ends[..];
         let time = |i: usize| run.get(i).map_or(run[run.len() - 1].t[1], |p| p.t[0]);
@@ -863,8 +914,11 @@ impl<'a> Prepared<'a> {
             // range bounds: its path in a shadow map is the straight one between the nearest and
             // the farthest, and none of it lies deeper from the light than they do.
             ranges.clear();
-            if !self.shadows.is_empty() {
-                ranges.extend(run.iter().map(|piece| self.depth_range(piece, d, depths)));
+            if !tile.unshadowed[..self.shadows.len()]
+                .iter()
+                .all(|&clear| clear)
+            {
+                ranges.extend(run.iter().map(|piece| self.depth_range(piece, d, tile)));
             }
             let whole = ranges
                 .iter()
@@ -872,7 +926,7 @@ impl<'a> Prepared<'a> {
                     range.map(|[a, b]| [lo.min(a), hi.max(b)])
                 });
             let on_ray = |depth: f64| self.view_to_world.transform_point3(d * depth);
-            let mut maps = self.shadows.iter();
+            let mut maps = self.shadows.iter().zip(tile.unshadowed);
             for source in &self.sources {
                 // N·L at each piece's ends (shared with its neighbours) and middle.
                 let facing = |end: &SurfacePoint| end.normal.dot(source.towards(end.point));
@@ -887,7 +941,7 @@ impl<'a> Prepared<'a> {
                 if !source.shadows() {
                     continue;
                 }
-                let map = maps.next()?;
+                let (map, unshadowed) = maps.next()?;
                 // A walk along a stretch of the ray over a time span, with the depth from the light
                 // of its deeper end as the limit (no bias: stricter than any point's).
                 let lit_along = |[nearest, farthest]: [f64; 2], span: [f64; 2]| {
@@ -917,7 +971,7 @@ impl<'a> Prepared<'a> {
                     }
                     Some(())
                 };
-                if !(away || lit().is_some()) {
+                if !(away || unshadowed || lit().is_some()) {
                     return None;
                 }
             }
@@ -963,10 +1017,11 @@ impl<'a> Prepared<'a> {
         (normal, point): (DVec3, DVec3),
         span: [f64; 2],
         own: (u32, u32),
+        unshadowed: [bool; MAX_SHADOWED_LIGHTS],
     ) -> Option<f64> {
-        let mut maps = self.shadows.iter();
+        let mut maps = self.shadows.iter().zip(unshadowed);
         for source in self.sources.iter().filter(|source| source.shadows()) {
-            let map = maps.next()?;
+            let (map, unshadowed) = maps.next()?;
             let away = normal.dot(source.towards(point)) <= 0.0;
             let receiver = Receiver {
                 path: [point; 2],
@@ -974,7 +1029,7 @@ impl<'a> Prepared<'a> {
                 span,
                 own,
             };
-            if !(away || map.surely_lit(&receiver)) {
+            if !(away || unshadowed || map.surely_lit(&receiver)) {
                 return None;
             }
         }
@@ -993,6 +1048,7 @@ impl<'a> Prepared<'a> {
         piece: &Interval,
         d: DVec3,
         cuts: &mut Vec<f64>,
+        unshadowed: [bool; MAX_SHADOWED_LIGHTS],
         stats: &mut TriangleStats,
     ) -> [f64; 3] {
         let item = &self.items[piece.item as usize];
@@ -1012,7 +1068,7 @@ impl<'a> Prepared<'a> {
         let first = self.hit(item, &triangle, d, fraction(span[0]));
         let start = self.surface_with(item, &first, d, fraction(span[0]));
         if segment.still {
-            if let Some(irradiance) = self.surely_lit_irradiance(start, span, own) {
+            if let Some(irradiance) = self.surely_lit_irradiance(start, span, own, unshadowed) {
                 return self
                     .albedo_with(item, first.weights)
                     .map(|c| c * irradiance);
@@ -1047,7 +1103,7 @@ impl<'a> Prepared<'a> {
         // from its light all along, or is lit all along.
         let mut surely_lit = [true; MAX_SHADOWED_LIGHTS];
         if self.scene.lighting.is_lit() {
-            let mut maps = self.shadows.iter().zip(&mut surely_lit);
+            let mut maps = self.shadows.iter().zip(unshadowed).zip(&mut surely_lit);
             for source in &self.sources {
                 let facing = |t: f64| {
                     let (normal, p) = surface_at(t);
@@ -1061,8 +1117,8 @@ impl<'a> Prepared<'a> {
                     cut_where_turning(values, span, cuts)
                 };
                 if source.shadows() {
-                    if let Some((map, lit)) = maps.next() {
-                        *lit = away || map.surely_lit(&receiver);
+                    if let Some(((map, unshadowed), lit)) = maps.next() {
+                        *lit = away || unshadowed || map.surely_lit(&receiver);
                     }
                 }
             }
@@ -1175,10 +1231,10 @@ impl<'a> Prepared<'a> {
         &self,
         interval: &Interval,
         d: DVec3,
-        depths: &TileDepths,
+        tile: &TileShared,
         out: &mut Vec<Interval>,
     ) {
-        let Some((along, span, time)) = self.bend(interval, d, depths) else {
+        let Some((along, span, time)) = self.bend(interval, d, tile) else {
             out.push(*interval);
             return;
         };
@@ -1197,14 +1253,14 @@ impl<'a> Prepared<'a> {
         (out[last].t[1], out[last].depth[1]) = (interval.t[1], interval.depth[1]);
     }
 
-    /// Where `interval` of the ray `d` bends: its item's depth along the ray (from the tile's
-    /// `depths` where it has it), its span as fractions of the item's segment, and the segment's
+    /// Where `interval` of the ray `d` bends: its item's depth along the ray (from `tile` where
+    /// it has it), its span as fractions of the item's segment, and the segment's
     /// time. `None` for a line.
     fn bend(
         &self,
         interval: &Interval,
         d: DVec3,
-        depths: &TileDepths,
+        tile: &TileShared,
     ) -> Option<(RayDepth, [f64; 2], [f64; 2])> {
         if !interval.bends {
             return None;
@@ -1214,7 +1270,7 @@ impl<'a> Prepared<'a> {
         if !(t1 > t0) {
             return None;
         }
-        let along = match depths.of(interval.item) {
+        let along = match tile.of(interval.item) {
             Some(entry) => entry.depth.along(d),
             None => self.corners(item).depth_function().along(d),
         };
@@ -1223,12 +1279,12 @@ impl<'a> Prepared<'a> {
 
     /// Bounds [nearest, farthest] on the depth of `interval` along the ray `d`
     /// ([`RayDepth::range`]); `None` where they cannot be had.
-    fn depth_range(&self, interval: &Interval, d: DVec3, depths: &TileDepths) -> Option<[f64; 2]> {
+    fn depth_range(&self, interval: &Interval, d: DVec3, tile: &TileShared) -> Option<[f64; 2]> {
         let ends = [
             interval.depth[0].min(interval.depth[1]),
             interval.depth[0].max(interval.depth[1]),
         ];
-        let Some((along, span, _)) = self.bend(interval, d, depths) else {
+        let Some((along, span, _)) = self.bend(interval, d, tile) else {
             return Some(ends);
         };
         let [nearest, farthest] = along.range(span)?;
@@ -1260,13 +1316,13 @@ impl<'a> Prepared<'a> {
         &self,
         index: u32,
         d: DVec3,
-        depths: &TileDepths,
+        tile: &TileShared,
         times: &[f64],
         out: &mut Vec<SurfacePoint>,
     ) {
         let item = &self.items[index as usize];
         let [t0, t1] = self.segment(item).time;
-        let plain = depths
+        let plain = tile
             .of(index)
             .and_then(|entry| Some((entry.depth.along(d), entry.plain?)));
         let mut triangle = None;
@@ -1671,25 +1727,29 @@ impl<'o> SampleGrid<'o> {
     }
 }
 
-/// What a tile's samples reuse of its items, found by item index in constant time (a sample's
-/// run looks up each of its pieces' items twice).
+/// What a tile's samples share: its items, found by item index in constant time (a sample's
+/// run looks up each of its pieces' items twice), and which shadow maps shadow none of them.
 #[derive(Default)]
-struct TileDepths {
+struct TileShared {
     entries: Vec<TileItem>,
     /// Per item of the image, its place in `entries`, or [`NOT_IN_TILE`].
     slots: Vec<u32>,
+    /// Per shadow map, whether it holds no occluder where the tile's samples can see a
+    /// receiver ([`Prepared::unshadowed`]): each of them is lit by its light throughout.
+    unshadowed: [bool; MAX_SHADOWED_LIGHTS],
 }
 
-/// A [`TileDepths`] slot of an item the tile does not hold.
+/// A [`TileShared`] slot of an item the tile does not hold.
 const NOT_IN_TILE: u32 = u32::MAX;
 
-impl TileDepths {
+impl TileShared {
     /// Empty, for a tile among `items` items.
     fn clear(&mut self, items: usize) {
         for entry in &self.entries {
             self.slots[entry.index as usize] = NOT_IN_TILE;
         }
         self.entries.clear();
+        self.unshadowed = [false; MAX_SHADOWED_LIGHTS];
         if self.slots.len() < items {
             self.slots.resize(items, NOT_IN_TILE);
         }
@@ -1772,7 +1832,7 @@ struct Scratch {
     /// One covered interval's depth pieces, before they enter a list.
     pieces: Vec<Interval>,
     shading: ShadingScratch,
-    depths: TileDepths,
+    tile: TileShared,
     /// The finished pixels: colour and hidden-beyond depth.
     pixels: Vec<([f32; 3], f32)>,
 }

@@ -410,6 +410,49 @@ impl ShadowMap {
         true
     }
 
+    /// Whether the map holds no occluder in any texel that a lookup at a point within the
+    /// convex hull of `corners` can read: every receiver there is lit throughout. The hull's
+    /// image in the map is the hull of its corners' images (the light's projection keeps
+    /// straight lines straight in front of it), so their bounding box and one texel more bound
+    /// what bilinear lookups read. False where a corner lies behind the light.
+    #[must_use]
+    pub fn empty_around(&self, corners: &[DVec3]) -> bool {
+        if self.nearest_in_tile.is_empty() {
+            return false;
+        }
+        let mut bounds = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for &p in corners {
+            let Some((at, _)) = self.locate(p) else {
+                return false;
+            };
+            bounds = [
+                bounds[0].min(at.x),
+                bounds[1].min(at.y),
+                bounds[2].max(at.x),
+                bounds[3].max(at.y),
+            ];
+        }
+        if !bounds.iter().all(|b| b.is_finite()) {
+            return false;
+        }
+        let side = f64::from(self.occluders.camera.width);
+        // Texels ⌊x⌋ and ⌊x⌋ + 1 are read at x; clamped to the map (beyond it nothing is read).
+        let texel = |v: f64, more: f64| (v.floor() + more).clamp(0.0, side) as u32;
+        let texels = [
+            texel(bounds[0], 0.0),
+            texel(bounds[1], 0.0),
+            texel(bounds[2], 2.0),
+            texel(bounds[3], 2.0),
+        ];
+        // No occluder's id is Nearest::NONE's: every one counts.
+        self.surely_lit_within(texels, f64::INFINITY, Nearest::NONE.id)
+    }
+
     /// Where world point `p` falls: continuous texel coordinates (texel centres at integers)
     /// and its depth from the light; `None` behind the light.
     #[must_use]
@@ -716,6 +759,55 @@ mod tests {
         assert!(map.surely_lit(&receiver([beside, beside], [0.0, 1.0], (0, 0))));
         let next = point(&map, 7.5, 7.5);
         assert!(!map.surely_lit(&receiver([next, next], [0.0, 1.0], (0, 0))));
+    }
+
+    #[test]
+    fn a_hull_is_empty_around_only_where_no_lookup_within_it_reads_an_occluder() {
+        // A 32 × 32 map of four tiles, the occluder in texel (8, 8) of the first.
+        let camera = Camera::new(DVec3::ZERO, -DVec3::Z, DVec3::Y, 90.0, 32, 32)
+            .and_then(|c| c.with_spatial_samples(1))
+            .unwrap();
+        let one = map_with_one_occluder();
+        let mut tiles = vec![(Vec::new(), Vec::new()); 4];
+        tiles[0] = one.occluders.tiles[0].clone();
+        let map = ShadowMap::new(Occluders {
+            camera,
+            tiles,
+            left_empty: 3,
+        })
+        .summarised();
+        // The eight corners of a box of texels [x0, x1] × [y0, y1] between depths 4 and 6.
+        let hull = |[x0, y0, x1, y1]: [f64; 4]| -> Vec<DVec3> {
+            let camera = &map.occluders.camera;
+            [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
+                .iter()
+                .flat_map(|&(x, y)| [4.0, 6.0].map(|z| camera.ray(x + 0.5, y + 0.5) * z))
+                .collect()
+        };
+        // Within the other tiles, or reaching the first only past its last texel.
+        for texels in [
+            [20.0, 20.0, 28.0, 28.0],
+            [16.2, 2.0, 30.0, 14.0],
+            [2.0, 16.1, 14.0, 30.0],
+        ] {
+            let corners = hull(texels);
+            assert!(map.empty_around(&corners), "{texels:?}");
+            // Every point of the hull is then lit: its lookups read no occluder.
+            for k in 0..=20 {
+                let u = f64::from(k) / 20.0;
+                let p = corners[0]
+                    .lerp(corners[7], u)
+                    .lerp(corners[(k % 8) as usize], 0.3);
+                assert!(map.surely_lit(&receiver([p, p], [0.0, 1.0], (0, 0))));
+            }
+        }
+        // A lookup at x in [15, 16) reads texel 16 and texel 15 of the first tile.
+        assert!(!map.empty_around(&hull([15.5, 2.0, 30.0, 14.0])));
+        assert!(!map.empty_around(&hull([2.0, 2.0, 14.0, 14.0])));
+        // A corner behind the light: nothing is known.
+        let mut behind = hull([20.0, 20.0, 28.0, 28.0]);
+        behind[0].z = 1.0;
+        assert!(!map.empty_around(&behind));
     }
 
     #[test]

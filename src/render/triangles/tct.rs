@@ -154,14 +154,29 @@ impl MovingTriangle {
         }
     }
 
-    /// The least depth (camera-space −z) any of its points reaches over the segment: its
-    /// corners' least at either end, since every point is a weighted mean of the corners and
-    /// they move linearly.
+    /// The least and the greatest depth (camera-space −z) any of its points reaches over the
+    /// segment: its corners' at either end, since every point is a weighted mean of the corners
+    /// and they move linearly.
     #[must_use]
-    pub fn nearest_depth(&self) -> f64 {
+    pub fn depth_bounds(&self) -> [f64; 2] {
         (0..3)
-            .map(|k| (-self.start[k].z).min(-(self.start[k] + self.delta[k]).z))
-            .fold(f64::INFINITY, f64::min)
+            .flat_map(|k| [-self.start[k].z, -(self.start[k] + self.delta[k]).z])
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], z| {
+                [lo.min(z), hi.max(z)]
+            })
+    }
+
+    /// Bounds on its plane's depth at s = 0 along the rays between `rays` (the rays through a
+    /// screen rectangle's corners): 1/depth is linear across the image, so over the rectangle
+    /// the depth lies between its values along the corner rays. `None` where a corner ray does
+    /// not meet the plane in front (it may turn edge-on to a ray within the rectangle).
+    #[must_use]
+    pub fn plane_depths_within(&self, rays: [DVec3; 4]) -> Option<[f64; 2]> {
+        rays.iter()
+            .try_fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], &d| {
+                let depth = self.plane_hit(d, 0.0).depth?;
+                Some([lo.min(depth), hi.max(depth)])
+            })
     }
 
     /// [`MovingTriangle::ray_hit`] for a triangle whose corners share everything the weights
@@ -587,6 +602,40 @@ mod tests {
             triangle.depth_function().along(d).plane_hit(0.5).back,
             flipped.depth_function().along(d).plane_hit(0.5).back
         );
+    }
+
+    #[test]
+    fn a_still_planes_depths_over_a_rectangle_of_rays_lie_between_its_corners() {
+        let triangle = MovingTriangle {
+            start: [
+                DVec3::new(-1.0, -0.5, -3.0),
+                DVec3::new(1.5, -0.2, -6.0),
+                DVec3::new(0.1, 1.2, -4.0),
+            ],
+            delta: [DVec3::ZERO; 3],
+        };
+        let ray = |x: f64, y: f64| DVec3::new(x, y, -1.0);
+        let [x0, y0, x1, y1] = [-0.2, -0.15, 0.25, 0.1];
+        let corners = [ray(x0, y0), ray(x1, y0), ray(x0, y1), ray(x1, y1)];
+        let [lo, hi] = triangle.plane_depths_within(corners).unwrap();
+        assert!(hi > lo * 1.1, "a plane in depth: {lo} {hi}");
+        for i in 0..=10 {
+            for j in 0..=10 {
+                let (u, v) = (f64::from(i) / 10.0, f64::from(j) / 10.0);
+                let d = ray(x0 + (x1 - x0) * u, y0 + (y1 - y0) * v);
+                let z = triangle.plane_hit(d, 0.0).depth.unwrap();
+                assert!(
+                    z >= lo * (1.0 - 1e-12) && z <= hi * (1.0 + 1e-12),
+                    "{z} in {lo}..{hi}"
+                );
+            }
+        }
+        // Seen edge-on from one corner ray (it runs along the plane): nothing is bounded.
+        let along = triangle.start[1] - triangle.start[0];
+        let edge_on = along / -along.z;
+        assert!(triangle
+            .plane_depths_within([edge_on, corners[1], corners[2], corners[3]])
+            .is_none());
     }
 
     #[test]
