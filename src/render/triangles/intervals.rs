@@ -194,6 +194,25 @@ fn push_visible(out: &mut Vec<Interval>, first: usize, interval: &Interval, [t0,
 mod tests {
     use super::*;
 
+    /// An interval of `item` whose depth is the line between `depth` over `t`.
+    fn line(t: [f64; 2], depth: [f64; 2], item: u32) -> Interval {
+        Interval {
+            t,
+            depth,
+            item,
+            bends: false,
+        }
+    }
+
+    /// Palmér Fig. 2.1, with a crossing: blue recedes from depth 1 to 3 over [0, 1]; red stays at
+    /// depth 2 from t = 0.2 on.
+    fn blue_and_red() -> (Interval, Interval) {
+        (
+            line([0.0, 1.0], [1.0, 3.0], 0),
+            line([0.2, 1.0], [2.0, 2.0], 1),
+        )
+    }
+
     fn resolved(intervals: &[Interval]) -> Vec<Interval> {
         let mut out = Vec::new();
         resolve(intervals, &mut ResolveScratch::default(), &mut out, as_is);
@@ -204,18 +223,12 @@ mod tests {
     fn a_list_in_time_order_resolves_as_the_sweep_resolves_it_shuffled() {
         // One surface over three sub-segments (the first two on one line, so joined), an empty
         // piece, and another surface after a gap.
-        let piece = |t: [f64; 2], depth: [f64; 2], item: u32| Interval {
-            t,
-            depth,
-            item,
-            bends: false,
-        };
         let ordered = [
-            piece([0.0, 0.25], [1.0, 1.5], 0),
-            piece([0.25, 0.5], [1.5, 2.0], 0),
-            piece([0.5, 0.5], [2.0, 2.0], 1),
-            piece([0.5, 0.7], [2.0, 1.0], 0),
-            piece([0.8, 0.9], [3.0, 3.0], 2),
+            line([0.0, 0.25], [1.0, 1.5], 0),
+            line([0.25, 0.5], [1.5, 2.0], 0),
+            line([0.5, 0.5], [2.0, 2.0], 1),
+            line([0.5, 0.7], [2.0, 1.0], 0),
+            line([0.8, 0.9], [3.0, 3.0], 2),
         ];
         let mut shuffled = ordered;
         shuffled.reverse();
@@ -227,30 +240,18 @@ mod tests {
 
     #[test]
     fn overlapping_intervals_are_swept_on_their_depth_pieces_and_a_lone_one_is_kept_whole() {
-        // A surface held as the line from depth 1 to 3 whose depth bends through 1.4 at t = 0.5,
-        // and a still one at depth 2 from t = 0.2: the line would cross 2 at t = 0.5, the bent
-        // depth crosses it at 0.5 + 0.5 · 0.6 / 1.6 = 0.6875.
+        // Blue held as its line from depth 1 to 3 while its depth bends through 1.4 at t = 0.5,
+        // and red: the line would cross 2 at t = 0.5, the bent depth crosses it at
+        // 0.5 + 0.5 · 0.6 / 1.6 = 0.6875.
+        let (blue, still) = blue_and_red();
         let bent = Interval {
-            t: [0.0, 1.0],
-            depth: [1.0, 3.0],
-            item: 0,
             bends: true,
-        };
-        let still = Interval {
-            t: [0.2, 1.0],
-            depth: [2.0, 2.0],
-            item: 1,
-            bends: false,
+            ..blue
         };
         let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
             if interval.bends {
                 for (t, depth) in [([0.0, 0.5], [1.0, 1.4]), ([0.5, 1.0], [1.4, 3.0])] {
-                    out.push(Interval {
-                        t,
-                        depth,
-                        bends: false,
-                        ..*interval
-                    });
+                    out.push(line(t, depth, interval.item));
                 }
             } else {
                 out.push(*interval);
@@ -274,20 +275,8 @@ mod tests {
 
     #[test]
     fn two_surfaces_crossing_in_depth_each_get_their_visible_time() {
-        // Palmér Fig. 2.1, with a crossing: blue recedes from depth 1 to 3 over [0, 1]; red
-        // stays at depth 2 from t = 0.2 on. Blue is nearer until it passes depth 2 at t = 0.5.
-        let blue = Interval {
-            t: [0.0, 1.0],
-            depth: [1.0, 3.0],
-            item: 0,
-            bends: false,
-        };
-        let red = Interval {
-            t: [0.2, 1.0],
-            depth: [2.0, 2.0],
-            item: 1,
-            bends: false,
-        };
+        // Blue is nearer until it passes depth 2 at t = 0.5.
+        let (blue, red) = blue_and_red();
         for list in [[blue, red], [red, blue]] {
             let out = resolved(&list);
             assert_eq!(out.len(), 2, "{out:?}");
@@ -299,24 +288,9 @@ mod tests {
 
     #[test]
     fn a_hidden_interval_leaves_nothing_and_gaps_stay_gaps() {
-        let near = Interval {
-            t: [0.0, 0.4],
-            depth: [1.0, 1.0],
-            item: 0,
-            bends: false,
-        };
-        let far = Interval {
-            t: [0.1, 0.3],
-            depth: [5.0, 5.0],
-            item: 1,
-            bends: false,
-        };
-        let late = Interval {
-            t: [0.6, 0.9],
-            depth: [5.0, 4.0],
-            item: 2,
-            bends: false,
-        };
+        let near = line([0.0, 0.4], [1.0, 1.0], 0);
+        let far = line([0.1, 0.3], [5.0, 5.0], 1);
+        let late = line([0.6, 0.9], [5.0, 4.0], 2);
         let out = resolved(&[far, late, near]);
         assert_eq!(out.len(), 2, "{out:?}");
         assert_eq!(out[0].t, [0.0, 0.4]);

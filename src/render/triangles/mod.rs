@@ -567,6 +567,7 @@ impl<'a> Prepared<'a> {
         let grid = SampleGrid::new(bounds, offsets);
         scratch.tile.clear(self.items.len());
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
+        let rays = self.corner_rays(bounds);
         let mut depth_bounds = [f64::INFINITY, f64::NEG_INFINITY];
         // Still items first: where one covers a sample all along, a later item lying wholly
         // deeper than it there can never be seen, and is left out before its coverage is
@@ -580,7 +581,7 @@ impl<'a> Prepared<'a> {
                 }
                 let placed = self.triangle(item);
                 if cut_later {
-                    let [near, far] = self.depth_bounds_within(&placed, bounds);
+                    let [near, far] = depth_bounds_within(&placed, rays);
                     depth_bounds = [depth_bounds[0].min(near), depth_bounds[1].max(far)];
                     scratch.tile.push(TileItem {
                         index,
@@ -595,36 +596,23 @@ impl<'a> Prepared<'a> {
             }
         }
         if cut_later {
-            scratch.tile.unshadowed = self.unshadowed(bounds, depth_bounds);
+            scratch.tile.unshadowed = self.unshadowed(rays, depth_bounds);
         }
     }
 
-    /// Bounds on the depth of `placed` where the rays through pixels `[x0, y0, x1, y1)` meet it:
-    /// its corners' over its segment, or, still, its plane's over the tile's rays
-    /// ([`MovingTriangle::plane_depths_within`]) where they are tighter.
-    fn depth_bounds_within(&self, placed: &Placed, [x0, y0, x1, y1]: [u32; 4]) -> [f64; 2] {
-        let bounds = placed.triangle.depth_bounds();
-        let rays = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
-            .map(|(x, y)| self.camera.ray(f64::from(x), f64::from(y)));
-        match placed
-            .still
-            .then(|| placed.triangle.plane_depths_within(rays))
-        {
-            Some(Some(plane)) => [bounds[0].max(plane[0]), bounds[1].min(plane[1])],
-            _ => bounds,
-        }
+    /// The rays through the corners of pixels `[x0, y0, x1, y1)`: (x0, y0), (x1, y0), (x0, y1),
+    /// (x1, y1). Every sample of those pixels lies between them.
+    fn corner_rays(&self, [x0, y0, x1, y1]: [u32; 4]) -> [DVec3; 4] {
+        [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
+            .map(|(x, y)| self.camera.ray(f64::from(x), f64::from(y)))
     }
 
-    /// Per shadow map, whether it holds no occluder in any texel that a receiver seen through
-    /// pixels `[x0, y0, x1, y1)` at a depth within `[near, far]` can read. Such receivers lie in
-    /// the frustum piece between those depths, the convex hull of its eight corners, which
-    /// [`ShadowMap::empty_around`] tests at once for the whole tile: where it holds, no sample
-    /// of the tile walks the map to find that it is lit.
-    fn unshadowed(
-        &self,
-        [x0, y0, x1, y1]: [u32; 4],
-        [near, far]: [f64; 2],
-    ) -> [bool; MAX_SHADOWED_LIGHTS] {
+    /// Per shadow map, whether it holds no occluder in any texel that a receiver seen between
+    /// the corner `rays` of a tile ([`Prepared::corner_rays`]) at a depth within `[near, far]`
+    /// can read. Such receivers lie in the frustum piece between those depths, the convex hull
+    /// of its eight corners, which [`ShadowMap::empty_around`] tests at once for the whole tile:
+    /// where it holds, no sample of the tile walks the map to find that it is lit.
+    fn unshadowed(&self, rays: [DVec3; 4], [near, far]: [f64; 2]) -> [bool; MAX_SHADOWED_LIGHTS] {
         let mut unshadowed = [false; MAX_SHADOWED_LIGHTS];
         let near = near.max(self.camera.near);
         if !(far >= near && far.is_finite()) {
@@ -632,11 +620,8 @@ impl<'a> Prepared<'a> {
         }
         let mut corners = [DVec3::ZERO; 8];
         for (k, corner) in corners.iter_mut().enumerate() {
-            let x = if k & 1 == 0 { x0 } else { x1 };
-            let y = if k & 2 == 0 { y0 } else { y1 };
             let depth = if k & 4 == 0 { near } else { far };
-            let d = self.camera.ray(f64::from(x), f64::from(y));
-            *corner = self.view_to_world.transform_point3(d * depth);
+            *corner = self.view_to_world.transform_point3(rays[k & 3] * depth);
         }
         for (clear, map) in unshadowed.iter_mut().zip(&self.shadows) {
             *clear = map.empty_around(&corners);
@@ -1559,6 +1544,20 @@ enum DepthPieces {
     /// that overlap in time, a run that may be shadowed. Most of an image's samples see one
     /// surface at a time, lit or unlit for sure, and need neither.
     OnDemand,
+}
+
+/// Bounds on the depth of `placed` where the rays between the corner `rays` of a tile meet it:
+/// its corners' over its segment, or, still, its plane's over those rays
+/// ([`MovingTriangle::plane_depths_within`]) where they are tighter.
+fn depth_bounds_within(placed: &Placed, rays: [DVec3; 4]) -> [f64; 2] {
+    let bounds = placed.triangle.depth_bounds();
+    match placed
+        .still
+        .then(|| placed.triangle.plane_depths_within(rays))
+    {
+        Some(Some(plane)) => [bounds[0].max(plane[0]), bounds[1].min(plane[1])],
+        _ => bounds,
+    }
 }
 
 /// The linear depth pieces of `item` along a ray whose depth is `along`, over the fractions
