@@ -43,6 +43,12 @@ impl Sym2 {
         self.xx * v.x * v.x + 2.0 * self.xy * v.x * v.y + self.yy * v.y * v.y
     }
 
+    /// S v.
+    #[must_use]
+    pub fn apply(&self, v: DVec2) -> DVec2 {
+        DVec2::new(self.xx * v.x + self.xy * v.y, self.xy * v.x + self.yy * v.y)
+    }
+
     /// The determinant.
     #[must_use]
     pub fn det(&self) -> f64 {

@@ -10,11 +10,12 @@
 
 use crate::math::Sym2;
 use crate::raster::{
-    Footprint, Profile, Rejection, ScreenSplat, TimeExtent, CUTOFF_SIGMAS, PREFILTER_VARIANCE_PX2,
+    Footprint, Profile, Rejection, ScreenSplat, TimeExtent, CUTOFF_SIGMAS, MIN_STREAK_SIGMAS,
+    PREFILTER_VARIANCE_PX2,
 };
 use crate::scene::camera::Camera;
 use crate::scene::motion::Pose;
-use crate::scene::shutter::{Shutter, TimeMoments};
+use crate::scene::shutter::{Shutter, ShutterShape, TimeMoments};
 use crate::scene::{Lighting, Object};
 use crate::surfels::Surfel;
 use glam::{DAffine3, DMat3, DVec2, DVec3};
@@ -161,6 +162,7 @@ impl Located {
                 depth_tolerance,
                 time: TimeExtent::WHOLE_FRAME,
                 profile: Profile::Gaussian,
+                sweep: DVec2::ZERO,
                 additive: false,
             },
             facing,
@@ -348,7 +350,9 @@ fn between(a: &ScreenSplat, b: &ScreenSplat, s: f64) -> ScreenSplat {
 
 /// The motion ellipse of one surfel over [t0, t1] of the exposure `shutter`, seen as `a` at t0 and
 /// `b` at t1, with the shutter `moments` of the interval; `chained` when it is one of several
-/// consecutive sub-segments.
+/// consecutive sub-segments. With `exact_streak`, under a box shutter, a splat that slides at
+/// least [`MIN_STREAK_SIGMAS`] is drawn as its exact streak instead (see
+/// [`ScreenSplat::sweep`]).
 pub(crate) fn motion_ellipse(
     shutter: &Shutter,
     a: &SurfelView,
@@ -356,6 +360,7 @@ pub(crate) fn motion_ellipse(
     [t0, t1]: [f64; 2],
     moments: &TimeMoments,
     chained: bool,
+    exact_streak: bool,
 ) -> Result<ScreenSplat, Cull> {
     // A surfel turning edge-on within the sub-segment shows its face only until (or from) the
     // turn, its facing cosine taken as linear in time: the ellipse is clipped to that part, and
@@ -389,6 +394,41 @@ pub(crate) fn motion_ellipse(
     let chord = b.center - a.center;
     let splat = mean.covariance + Sym2::isotropic(PREFILTER_VARIANCE_PX2);
     let duration = t1 - t0;
+    // In exposure time (0 at shutter open, 1 at close), as the rasterizer counts it.
+    let exposure = shutter.duration();
+    let exposure_time = |t: f64| (t - shutter.open) / exposure;
+    let depth_gradient =
+        streak_depth_gradient(mean.depth_gradient, chord, b.depth - a.depth, splat);
+    let depth_tolerance = a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs();
+    let conic = splat.inverse();
+    let length_sq = conic.map_or(0.0, |q| q.quadratic(chord));
+    if exact_streak
+        && shutter.shape == ShutterShape::Box
+        && length_sq >= MIN_STREAK_SIGMAS * MIN_STREAK_SIGMAS
+    {
+        // A pixel is passed when the splat's centre is nearest it in the splat's own metric, at
+        // v/k chord lengths from the middle (docs/math.md, "Exact streaks"), for √3 of the
+        // splat's standard deviations along the chord either side.
+        let conic = conic.unwrap_or_default();
+        let time = TimeExtent {
+            center: exposure_time(moments.mean),
+            gradient: conic.apply(chord) * (duration / length_sq / exposure),
+            half_width: (3.0 / length_sq).sqrt().min(1.0) * duration / exposure,
+            span: [exposure_time(t0), exposure_time(t1)],
+        };
+        return Ok(ScreenSplat {
+            center: a.center + chord * s,
+            covariance: splat,
+            sweep: chord,
+            weight: mean.weight * moments.mass,
+            colour: mean.colour,
+            depth: mean.depth,
+            depth_gradient,
+            depth_tolerance,
+            time,
+            ..*a
+        });
+    }
     let uniform_variance = moments.variance / (duration * duration);
     let mut motion_variance = uniform_variance;
     let chord_sq = chord.length_squared();
@@ -407,9 +447,6 @@ pub(crate) fn motion_ellipse(
     // time; the span grows by as much (√3 × the added standard deviation), or that coverage would
     // pile into the sub-segment's first and last bins.
     let reach = (3.0 * (motion_variance - uniform_variance)).sqrt() * duration;
-    // In exposure time (0 at shutter open, 1 at close), as the rasterizer counts it.
-    let exposure = shutter.duration();
-    let exposure_time = |t: f64| (t - shutter.open) / exposure;
     let time = TimeExtent {
         center: exposure_time(moments.mean),
         gradient: if chord_sq > 0.0 {
@@ -429,8 +466,8 @@ pub(crate) fn motion_ellipse(
         weight: mean.weight * moments.mass,
         colour: mean.colour,
         depth: mean.depth,
-        depth_gradient: streak_depth_gradient(mean.depth_gradient, chord, b.depth - a.depth, splat),
-        depth_tolerance: a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs(),
+        depth_gradient,
+        depth_tolerance,
         time,
         ..*a
     })

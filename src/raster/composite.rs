@@ -150,7 +150,7 @@ impl<const B: usize> PixelState<B> {
     /// time farther back starts a new one. A footprint that meets the group at no time cannot be
     /// hidden by it and joins. With one bin this is the ternary test chained from each footprint
     /// to the next.
-    #[inline]
+    #[inline(always)]
     pub(super) fn add(&mut self, f: &Footprint, w: f32, [x, y]: [u32; 2], bins: &TimeBins<B>) {
         let depth = f.depth_at(x, y);
         let span = if B == 1 {
@@ -376,6 +376,7 @@ mod tests {
                 span,
             },
             profile: crate::raster::Profile::Gaussian,
+            sweep: DVec2::ZERO,
             additive: false,
         };
         (splat.footprint(1, 1).unwrap(), value)

@@ -10,10 +10,12 @@
 
 mod composite;
 mod profile;
+mod streak;
 mod tiles;
 
 pub use composite::TimeBins;
 pub use profile::{Profile, Texture};
+pub use streak::{Streak, MIN_STREAK_SIGMAS};
 
 use crate::framebuffer::Framebuffer;
 use crate::math::Sym2;
@@ -21,6 +23,7 @@ use composite::PixelState;
 use glam::DVec2;
 use profile::Sampler;
 use rayon::prelude::*;
+use streak::{StreakGeometry, StreakRows};
 pub(crate) use tiles::{TileGrid, TileLists};
 
 /// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², docs/math.md "Projected splat covariance").
@@ -103,6 +106,9 @@ pub struct Footprint {
     pub bounds: [u32; 4],
     /// The shape of its value across the ellipse.
     pub profile: Profile,
+    /// The exact streak it is drawn as, if it is one (see [`ScreenSplat::sweep`]); `conic` is
+    /// then the splat's own.
+    pub streak: Option<Streak>,
     /// Whether it adds light instead of covering what lies behind (see [`ScreenSplat::additive`]).
     pub additive: bool,
 }
@@ -167,6 +173,12 @@ pub struct ScreenSplat {
     pub time: TimeExtent,
     /// The shape of its value across the ellipse (Gaussian for every physically based renderer).
     pub profile: Profile,
+    /// The chord the splat's centre slides along, at constant speed, over its time span,
+    /// centred on `center` (zero for a splat that stands still). A Gaussian splat sliding at
+    /// least [`MIN_STREAK_SIGMAS`] is drawn as its exact streak, `covariance` being the splat's
+    /// own; a shorter slide, or another profile, as the ellipse of `covariance` + chord
+    /// chordᵀ/12, which has the streak's moments (docs/math.md, "Exact streaks").
+    pub sweep: DVec2,
     /// Emits light instead of covering: it adds weight × colour, dimmed by what lies in front of
     /// it, and hides nothing (additive motion trails, Guan & Mueller §4).
     pub additive: bool,
@@ -176,8 +188,20 @@ impl ScreenSplat {
     /// Clip to a `width`×`height` image and pack for the rasterizer. The covariance must already
     /// include the pre-filter.
     pub fn footprint(&self, width: u32, height: u32) -> Result<Footprint, Rejection> {
-        let conic = self.covariance.inverse().ok_or(Rejection::Degenerate)?;
-        let amplitude = self.weight / (self.profile.integral() * self.covariance.det().sqrt());
+        let streak = if self.sweep != DVec2::ZERO && self.profile == Profile::Gaussian {
+            StreakGeometry::of(&self.covariance, self.sweep)
+        } else {
+            None
+        };
+        let covariance = match streak {
+            Some(_) => self.covariance,
+            None => self.covariance + Sym2::outer(self.sweep).scaled(1.0 / 12.0),
+        };
+        let conic = covariance.inverse().ok_or(Rejection::Degenerate)?;
+        let integral = streak
+            .as_ref()
+            .map_or_else(|| self.profile.integral(), |s| s.integral);
+        let amplitude = self.weight / (integral * covariance.det().sqrt());
         if !(amplitude > 1e-12
             && amplitude.is_finite()
             && self.center.is_finite()
@@ -196,8 +220,11 @@ impl ScreenSplat {
         {
             return Err(Rejection::Degenerate);
         }
-        let (center, covariance) = (self.center, self.covariance);
-        let half = DVec2::new(covariance.xx.sqrt(), covariance.yy.sqrt()) * CUTOFF_SIGMAS;
+        let center = self.center;
+        let half = streak.as_ref().map_or_else(
+            || DVec2::new(covariance.xx.sqrt(), covariance.yy.sqrt()) * CUTOFF_SIGMAS,
+            |s| s.extent,
+        );
         let clip = |v: f64, max: u32| v.clamp(0.0, f64::from(max)) as u32;
         let x0 = clip((center.x - half.x).floor(), width);
         let x1 = clip((center.x + half.x).ceil() + 1.0, width);
@@ -220,6 +247,7 @@ impl ScreenSplat {
             time_span: self.time.span.map(|t| t as f32),
             bounds: [x0, y0, x1, y1],
             profile: self.profile,
+            streak: streak.map(|s| s.streak),
             additive: self.additive,
         })
     }
@@ -239,15 +267,18 @@ impl Footprint {
     /// is the image a [`Profile::Texture`] footprint maps.
     #[cfg(test)]
     pub fn weight_at(&self, x: u32, y: u32, texture: Option<&Texture>) -> f32 {
-        let sampler = Sampler::new(self.profile, self.conic, texture);
-        let [a, b, c] = self.conic;
-        let d @ [dx, dy] = self.offset(x, y);
-        let q = dx * (a * dx + 2.0 * b * dy) + c * dy * dy;
-        if q > CUTOFF_Q {
-            0.0
-        } else {
-            self.amplitude * sampler.value(d, q)
-        }
+        let [dx, dy] = self.offset(x, y);
+        let value = match self.streak {
+            Some(streak) => {
+                let shape = StreakRows::new(streak, self.center, self.bounds);
+                shape.value(shape.row(dy), dx)
+            }
+            None => {
+                let shape = Ellipse::new(self, texture);
+                shape.value(shape.row(dy), dx)
+            }
+        };
+        self.amplitude * value
     }
 
     /// The time interval during which the footprint covers pixel (x, y).
@@ -269,6 +300,20 @@ impl Footprint {
     /// box's tiles, so footprints spanning at least three tile rows and columns are binned by the
     /// row spans of each tile row; smaller ones take their whole box, which costs less to find.
     fn for_each_tile(&self, grid: &TileGrid, visit: &mut dyn FnMut(usize)) {
+        match self.streak {
+            Some(streak) => {
+                self.tiles_within(
+                    &StreakRows::new(streak, self.center, self.bounds),
+                    grid,
+                    visit,
+                );
+            }
+            None => self.tiles_within(&Ellipse::new(self, None), grid, visit),
+        }
+    }
+
+    /// [`Self::for_each_tile`] for the footprint's `shape`.
+    fn tiles_within(&self, shape: &impl Shape, grid: &TileGrid, visit: &mut dyn FnMut(usize)) {
         let [x0, y0, x1, y1] = self.bounds;
         let (tx0, tx1) = (x0 / TILE_PX, (x1 - 1) / TILE_PX);
         let (ty0, ty1) = (y0 / TILE_PX, (y1 - 1) / TILE_PX);
@@ -277,8 +322,7 @@ impl Footprint {
                 (x0, x1)
             } else {
                 let rows = y0.max(ty * TILE_PX)..y1.min((ty + 1) * TILE_PX);
-                let spans = RowSpans::new(self);
-                rows.map(|y| spans.span(y))
+                rows.map(|y| shape.span(y))
                     .filter(|(a, b)| a < b)
                     .fold((u32::MAX, 0), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)))
             };
@@ -363,6 +407,64 @@ impl RowSpans {
             (lo, hi)
         } else {
             (0, 0)
+        }
+    }
+}
+
+/// A footprint's outline and value, pixel by pixel: an ellipse with its profile, or an exact
+/// streak.
+trait Shape {
+    /// What the pixels of one row share.
+    type Row: Copy;
+    /// Columns [x0, x1) of row `y` inside the cut-off and the bounds.
+    fn span(&self, y: u32) -> (u32, u32);
+    /// The row `dy` below the centre (pixel centres' offset).
+    fn row(&self, dy: f32) -> Self::Row;
+    /// The value before the amplitude at offset `dx` from the centre in `row`: zero beyond the
+    /// cut-off.
+    fn value(&self, row: Self::Row, dx: f32) -> f32;
+}
+
+/// An elliptical footprint: its rows, conic and profile.
+struct Ellipse<'a> {
+    spans: RowSpans,
+    conic: [f32; 3],
+    sampler: Sampler<'a>,
+}
+
+impl<'a> Ellipse<'a> {
+    #[inline]
+    fn new(f: &Footprint, texture: Option<&'a Texture>) -> Self {
+        Ellipse {
+            spans: RowSpans::new(f),
+            conic: f.conic,
+            sampler: Sampler::new(f.profile, f.conic, texture),
+        }
+    }
+}
+
+impl Shape for Ellipse<'_> {
+    /// dy, c·dy² and 2b·dy.
+    type Row = [f32; 3];
+
+    #[inline]
+    fn span(&self, y: u32) -> (u32, u32) {
+        self.spans.span(y)
+    }
+
+    #[inline]
+    fn row(&self, dy: f32) -> [f32; 3] {
+        let [_, b, c] = self.conic;
+        [dy, c * dy * dy, 2.0 * b * dy]
+    }
+
+    #[inline]
+    fn value(&self, [dy, row_q, row_slope]: [f32; 3], dx: f32) -> f32 {
+        let q = dx * (self.conic[0] * dx + row_slope) + row_q;
+        if q > CUTOFF_Q {
+            0.0
+        } else {
+            self.sampler.value([dx, dy], q)
         }
     }
 }
@@ -652,7 +754,7 @@ pub(crate) fn smaller<T: PartialOrd>(a: T, b: T) -> T {
 fn render_tile<'s, const B: usize>(
     footprints: &[Footprint],
     list: &[u32],
-    [x0, y0, x1, y1]: [u32; 4],
+    tile @ [x0, y0, x1, y1]: [u32; 4],
     target: &Target,
     bins: &TimeBins<B>,
     scratch: &'s mut TileScratch<B>,
@@ -670,39 +772,54 @@ fn render_tile<'s, const B: usize>(
     order.sort_unstable();
     for &key in order.iter() {
         let f = &footprints[key as u32 as usize];
-        let sampler = Sampler::new(f.profile, f.conic, target.texture);
-        let [a, b, c] = f.conic;
-        let [_, fy0, _, fy1] = f.bounds;
-        let spans = RowSpans::new(f);
-        for y in fy0.max(y0)..fy1.min(y1) {
-            let row = (y - y0) as usize * w;
-            let (sx0, sx1) = spans.span(y);
-            let dy = y as f32 + 0.5 - f.center[1];
-            let (row_q, row_slope) = (c * dy * dy, 2.0 * b * dy);
-            for x in sx0.max(x0)..sx1.min(x1) {
-                let state = &mut pixels[row + (x - x0) as usize];
-                if state.is_opaque() {
-                    continue;
-                }
-                if let Some(occluder) = target.occluder {
-                    let front = occluder[y as usize * target.width as usize + x as usize];
-                    if f.depth_at(x, y) >= front - f.depth_tolerance {
-                        continue;
-                    }
-                }
-                let dx = x as f32 + 0.5 - f.center[0];
-                let q = dx * (a * dx + row_slope) + row_q;
-                if q > CUTOFF_Q {
-                    continue;
-                }
-                let weight = f.amplitude * sampler.value([dx, dy], q);
-                if weight > 0.0 {
-                    state.add(f, weight, [x, y], bins);
-                }
+        match f.streak {
+            Some(streak) => {
+                let shape = StreakRows::new(streak, f.center, f.bounds);
+                composite_footprint(f, &shape, pixels, tile, target, bins);
+            }
+            None => {
+                let shape = Ellipse::new(f, target.texture);
+                composite_footprint(f, &shape, pixels, tile, target, bins);
             }
         }
     }
     pixels
+}
+
+/// Composite footprint `f`, drawn as `shape`, into the open pixel states of `tile`.
+#[inline]
+fn composite_footprint<const B: usize>(
+    f: &Footprint,
+    shape: &impl Shape,
+    pixels: &mut [PixelState<B>],
+    [x0, y0, x1, y1]: [u32; 4],
+    target: &Target,
+    bins: &TimeBins<B>,
+) {
+    let w = (x1 - x0) as usize;
+    let [_, fy0, _, fy1] = f.bounds;
+    for y in fy0.max(y0)..fy1.min(y1) {
+        let row = (y - y0) as usize * w;
+        let (sx0, sx1) = shape.span(y);
+        let row_shape = shape.row(y as f32 + 0.5 - f.center[1]);
+        for x in sx0.max(x0)..sx1.min(x1) {
+            let state = &mut pixels[row + (x - x0) as usize];
+            if state.is_opaque() {
+                continue;
+            }
+            if let Some(occluder) = target.occluder {
+                let front = occluder[y as usize * target.width as usize + x as usize];
+                if f.depth_at(x, y) >= front - f.depth_tolerance {
+                    continue;
+                }
+            }
+            let dx = x as f32 + 0.5 - f.center[0];
+            let weight = f.amplitude * shape.value(row_shape, dx);
+            if weight > 0.0 {
+                state.add(f, weight, [x, y], bins);
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -726,6 +843,7 @@ mod tests {
             depth_tolerance: 0.01,
             time: TimeExtent::WHOLE_FRAME,
             profile: Profile::Gaussian,
+            sweep: DVec2::ZERO,
             additive: false,
         }
     }

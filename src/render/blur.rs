@@ -1,12 +1,13 @@
-//! Motion blur in one pass of motion ellipses (Guan & Mueller §3.3): for each sub-segment of a
-//! moving object's plan, a surfel seen at both ends makes one elliptical Gaussian with the
-//! covariance of the projected splat plus that of its projected motion, weighted by the shutter
-//! mass of the sub-segment, so that a blurred splat carries the energy of the static one. The
-//! ellipse itself is [`crate::project::motion_ellipse`]; coverage is composited in
-//! [`TIME_BINS`] bins of shutter time. Derivation, the widening of chained ellipses and the
-//! known leaks (which `tests/stiff.rs` bounds): docs/math.md, "Motion ellipse by summing
-//! covariances" and "Time bins for coverage". `analytic` draws its scene's surfel objects here,
-//! over its triangles.
+//! Motion blur in one pass of motion footprints (Guan & Mueller §3.3): for each sub-segment of a
+//! moving object's plan, a surfel seen at both ends makes one footprint weighted by the shutter
+//! mass of the sub-segment, so that a blurred splat carries the energy of the static one. Under a
+//! box shutter it is the splat's exact streak (the splat convolved with its chord: Gaussian
+//! across, an erf difference along); otherwise G&M's ellipse with the covariance of the projected
+//! splat plus that of its projected motion. Both are [`crate::project::motion_ellipse`]; coverage
+//! is composited in [`TIME_BINS`] bins of shutter time. Derivations, the widening of chained
+//! ellipses and the known leaks (which `tests/stiff.rs` bounds): docs/math.md, "Motion ellipse by
+//! summing covariances", "Exact streaks" and "Time bins for coverage". `analytic` draws its
+//! scene's surfel objects here, over its triangles.
 
 use super::{draw, Exposure, Render, Stats};
 use crate::plan::{ObjectMotion, Plan};
@@ -60,7 +61,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             for (k, &segment) in segments.iter().enumerate() {
                 let result = match (&views[k], &views[k + 1]) {
                     (Some(a), Some(b)) => {
-                        motion_ellipse(&scene.shutter, a, b, segment, &moments[k], chained)
+                        motion_ellipse(&scene.shutter, a, b, segment, &moments[k], chained, true)
                             .and_then(|e| {
                                 e.footprint(camera.width, camera.height)
                                     .map_err(Cull::Raster)

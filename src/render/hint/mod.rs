@@ -16,7 +16,9 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
     motion_ellipse, per_surfel, static_footprint, view_surfel, Cull, Culled, Instant, SurfelView,
 };
-use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
+use crate::raster::{
+    rasterize, Footprint, Layer, Profile, RasterStats, ScreenSplat, Target, TimeBins,
+};
 use crate::scene::shutter::{Shutter, ShutterShape};
 use crate::scene::{Object, Scene};
 use crate::style::{
@@ -502,6 +504,8 @@ fn object_trails(
                         piece.local,
                         &COPY_TIME.moments(v0, v1),
                         piece.chained,
+                        // Other profiles map onto the ellipse.
+                        context.style.trail.profile == Profile::Gaussian,
                     )
                     .map(|ellipse| {
                         let normals = [&instants[ia], &instants[ib]]

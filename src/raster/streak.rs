@@ -1,0 +1,354 @@
+//! Exact streaks. A Gaussian splat whose centre slides at constant speed along a chord while the
+//! shutter is open leaves the splat convolved with that segment: Gaussian across the motion and
+//! an erf difference along it, flat-topped where the chord is long. Measured in the splat's own
+//! standard deviations (the metric of its conic Q), with v the position along the chord from its
+//! middle, p the distance across it and k the chord's length:
+//!
+//! ```text
+//! f(p, v) = exp(−p²/2) · (Φ(k/2 − v) − Φ(−k/2 − v)) / (k √(2π) √det Σ)
+//! ```
+//!
+//! which integrates to one. It is cut where |p| > 3 or |v| > k/2 + 3 (a parallelogram on screen)
+//! and the amplitude is raised by the mass the cut leaves out, found in closed form. Derivation:
+//! docs/math.md, "Exact streaks".
+
+use super::profile::{exp_half, gaussian_table, GaussianTable};
+use super::{ceil_non_negative, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
+use crate::math::Sym2;
+use glam::DVec2;
+use std::sync::LazyLock;
+
+/// Chords shorter than this many of the splat's standard deviations along them are drawn as the
+/// moment-matched ellipse instead: the streak is then nearly Gaussian, and the erf difference
+/// divided by a short chord would lose its digits.
+pub const MIN_STREAK_SIGMAS: f64 = 1.0;
+
+/// Φ is tabulated over [−PHI_RANGE, PHI_RANGE]; beyond, it is 0 or 1 to within 10⁻⁹.
+const PHI_RANGE: f32 = 6.0;
+
+/// Steps of the Φ table. Linear interpolation errs by at most h²/8 · max|φ'| = (12/2048)²/8 ·
+/// 0.242 ≈ 1.0·10⁻⁶.
+const PHI_STEPS: usize = 2048;
+
+/// Φ(t), the standard normal distribution function, at t = −PHI_RANGE + i · 2 PHI_RANGE /
+/// PHI_STEPS, with one entry past the end.
+static PHI_TABLE: LazyLock<[f32; PHI_STEPS + 2]> = LazyLock::new(|| {
+    std::array::from_fn(|i| {
+        let t = -f64::from(PHI_RANGE) + i as f64 * 2.0 * f64::from(PHI_RANGE) / PHI_STEPS as f64;
+        normal_cdf(t) as f32
+    })
+});
+
+/// Φ(t) in f64, from erfc so that the lower tail keeps its digits.
+fn normal_cdf(t: f64) -> f64 {
+    0.5 * libm::erfc(-t / std::f64::consts::SQRT_2)
+}
+
+/// ψ(x) = ∫ₓ^∞ Φ(−t) dt = φ(x) − x Φ(−x): the mass an erf ramp holds beyond x.
+fn ramp_tail(x: f64) -> f64 {
+    let density = (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt();
+    density - x * normal_cdf(-x)
+}
+
+/// Φ(t) from the table.
+#[inline]
+fn phi(t: f32) -> f32 {
+    let table = &*PHI_TABLE;
+    let u = (t + PHI_RANGE) * (PHI_STEPS as f32 / (2.0 * PHI_RANGE));
+    if !(u > 0.0) {
+        return 0.0;
+    }
+    // Through u32, as in the Gaussian table: a cheaper conversion than to usize.
+    let i = (u as u32).min(PHI_STEPS as u32) as usize;
+    let (v0, v1) = (table[i], table[i + 1]);
+    v0 + (v1 - v0) * (u - i as f32)
+}
+
+/// A footprint's streak: the linear maps from a pixel offset to its place across and along the
+/// chord, in the splat's standard deviations.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Streak {
+    /// p = across · d.
+    pub across: [f32; 2],
+    /// v = along · d, 0 at the chord's middle.
+    pub along: [f32; 2],
+    /// Half the chord, k/2.
+    pub half_length: f32,
+}
+
+/// A streak with what its footprint needs besides.
+pub(super) struct StreakGeometry {
+    pub(super) streak: Streak,
+    /// ∫ of the cut profile over the plane, in the splat's unit coordinates (where its covariance
+    /// is the identity): the amplitude is weight / (this · √det Σ).
+    pub(super) integral: f64,
+    /// Half the streak's bounding box, px.
+    pub(super) extent: DVec2,
+}
+
+impl StreakGeometry {
+    /// The streak of a splat of `covariance` (px², pre-filter included) sliding along `chord`
+    /// (px); `None` when the chord is shorter than [`MIN_STREAK_SIGMAS`] or the covariance is
+    /// singular.
+    pub(super) fn of(covariance: &Sym2, chord: DVec2) -> Option<StreakGeometry> {
+        let conic = covariance.inverse()?;
+        let length = conic.quadratic(chord).sqrt();
+        let normal = chord.perp();
+        let spread = covariance.quadratic(normal).sqrt();
+        if !(length >= MIN_STREAK_SIGMAS && spread > 0.0 && length.is_finite()) {
+            return None;
+        }
+        // v(chord) = k and p(chord) = 0; the screen vector Σn/√(nᵀΣn) has v = 0 and p = 1.
+        let along = conic.apply(chord) / length;
+        let across = normal / spread;
+        let (unit_along, unit_across) = (chord / length, covariance.apply(normal) / spread);
+        let reach = 0.5 * length + CUTOFF_SIGMAS;
+        let extent = unit_along.abs() * reach + unit_across.abs() * CUTOFF_SIGMAS;
+        // Mass kept inside the cut: across, a 1D Gaussian within ±3; along, the erf difference's
+        // integral k less ψ(3) − ψ(k + 3) beyond each end.
+        let kept_across = 1.0 - 2.0 * normal_cdf(-CUTOFF_SIGMAS);
+        let kept_along =
+            length - 2.0 * (ramp_tail(CUTOFF_SIGMAS) - ramp_tail(reach + 0.5 * length));
+        Some(StreakGeometry {
+            streak: Streak {
+                across: across.as_vec2().to_array(),
+                along: along.as_vec2().to_array(),
+                half_length: (0.5 * length) as f32,
+            },
+            integral: (2.0 * std::f64::consts::PI).sqrt() * kept_across * kept_along,
+            extent,
+        })
+    }
+}
+
+/// A streak's cut parallelogram row by row (the columns where both |p| ≤ 3 and |v| ≤ k/2 + 3),
+/// and its value.
+pub(super) struct StreakRows {
+    streak: Streak,
+    /// Centre column less ½ (pixel x covers the streak where x + ½ lies inside).
+    centre: f32,
+    centre_y: f32,
+    /// The bounds' first and last column.
+    first: f32,
+    last: f32,
+    gaussian: &'static GaussianTable,
+}
+
+impl StreakRows {
+    #[inline]
+    pub(super) fn new(streak: Streak, center: [f32; 2], [x0, _, x1, _]: [u32; 4]) -> StreakRows {
+        StreakRows {
+            streak,
+            centre: center[0] - 0.5,
+            centre_y: center[1],
+            first: x0 as f32,
+            last: x1 as f32 - 1.0,
+            gaussian: gaussian_table(),
+        }
+    }
+}
+
+impl Shape for StreakRows {
+    /// p and v at the row's column 0 offset: their parts that the row's dy gives.
+    type Row = [f32; 2];
+
+    #[inline]
+    fn span(&self, y: u32) -> (u32, u32) {
+        let dy = y as f32 + 0.5 - self.centre_y;
+        let s = &self.streak;
+        let mut range = [self.first - self.centre, self.last - self.centre];
+        for ([ax, ay], reach) in [
+            (s.across, CUTOFF_SIGMAS as f32),
+            (s.along, s.half_length + CUTOFF_SIGMAS as f32),
+        ] {
+            // |ax·dx + ay·dy| ≤ reach as a range of dx.
+            let offset = ay * dy;
+            if ax == 0.0 {
+                if offset.abs() > reach {
+                    return (0, 0);
+                }
+                continue;
+            }
+            let (a, b) = ((-reach - offset) / ax, (reach - offset) / ax);
+            range = [range[0].max(a.min(b)), range[1].min(a.max(b))];
+        }
+        if !(range[0] <= range[1]) {
+            return (0, 0);
+        }
+        let lo = ceil_non_negative((self.centre + range[0]).max(self.first));
+        let last = (self.centre + range[1]).min(self.last);
+        let hi = if last >= 0.0 { last as u32 + 1 } else { 0 };
+        if hi > lo {
+            (lo, hi)
+        } else {
+            (0, 0)
+        }
+    }
+
+    #[inline]
+    fn row(&self, dy: f32) -> [f32; 2] {
+        [self.streak.across[1] * dy, self.streak.along[1] * dy]
+    }
+
+    #[inline]
+    fn value(&self, [p_row, v_row]: [f32; 2], dx: f32) -> f32 {
+        let s = &self.streak;
+        let (p, v) = (s.across[0] * dx + p_row, s.along[0] * dx + v_row);
+        let (q, h) = (p * p, s.half_length);
+        if q > CUTOFF_Q || v.abs() > h + CUTOFF_SIGMAS as f32 {
+            return 0.0;
+        }
+        exp_half(self.gaussian, q) * (phi(h - v) - phi(-h - v))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::{Footprint, Profile, ScreenSplat, TimeExtent};
+
+    /// A Gaussian splat of `covariance` sliding along `sweep`, centred at (40.3, 31.6) in a
+    /// 96 × 64 image.
+    fn streak(covariance: Sym2, sweep: DVec2, weight: f64) -> Footprint {
+        ScreenSplat {
+            center: DVec2::new(40.3, 31.6),
+            covariance,
+            weight,
+            colour: [1.0; 3],
+            depth: 1.0,
+            depth_gradient: DVec2::ZERO,
+            depth_tolerance: 0.01,
+            time: TimeExtent::WHOLE_FRAME,
+            profile: Profile::Gaussian,
+            sweep,
+            additive: false,
+        }
+        .footprint(96, 64)
+        .unwrap()
+    }
+
+    fn pixels() -> impl Iterator<Item = (u32, u32)> {
+        (0..64).flat_map(|y| (0..96).map(move |x| (x, y)))
+    }
+
+    const TILTED: Sym2 = Sym2 {
+        xx: 2.3,
+        xy: 0.9,
+        yy: 1.1,
+    };
+
+    #[test]
+    fn a_streak_is_the_splat_integrated_along_its_chord() {
+        // The closed form against the midpoint rule over 4,000 positions of the sliding splat, at
+        // pixels inside the cut: the tables' error (10⁻⁶ of the peak) and f32 rounding remain.
+        let (covariance, sweep) = (TILTED, DVec2::new(31.0, -12.0));
+        let f = streak(covariance, sweep, 5.0);
+        assert!(f.streak.is_some());
+        let conic = covariance.inverse().unwrap();
+        let norm = 5.0 / (std::f64::consts::TAU * covariance.det().sqrt());
+        let mut checked = 0;
+        for (x, y) in pixels() {
+            let d = DVec2::new(f64::from(x) + 0.5 - 40.3, f64::from(y) + 0.5 - 31.6);
+            let steps = 4000;
+            let exact: f64 = (0..steps)
+                .map(|i| {
+                    let u = (f64::from(i) + 0.5) / f64::from(steps) - 0.5;
+                    (-0.5 * conic.quadratic(d - u * sweep)).exp()
+                })
+                .sum::<f64>()
+                * norm
+                / f64::from(steps);
+            let drawn = f64::from(f.weight_at(x, y, None));
+            if drawn > 0.0 {
+                // The amplitude also carries the cut's gain, 0.27 %.
+                assert!(
+                    (drawn - exact).abs() < 0.004 * exact + 2e-5 * norm,
+                    "({x}, {y}): {drawn} vs {exact}"
+                );
+                checked += 1;
+            } else {
+                assert!(exact < 0.012 * norm, "({x}, {y}) left out at {exact}");
+            }
+        }
+        assert!(checked > 200, "{checked}");
+    }
+
+    #[test]
+    fn pixel_samples_of_a_streak_sum_to_its_weight() {
+        // Long and short, level and steep, round and tilted splats: the cut's gain restores what
+        // the cut leaves out; what remains is pixel-centre sampling (within 0.5 %, as for
+        // ellipses at least the pre-filter wide).
+        for (covariance, sweep) in [
+            (Sym2::isotropic(0.3), DVec2::new(40.0, 0.0)),
+            (Sym2::isotropic(0.3), DVec2::new(0.0, 0.6)),
+            (TILTED, DVec2::new(31.0, -12.0)),
+            (TILTED, DVec2::new(-1.5, 1.8)),
+            (Sym2::isotropic(4.0), DVec2::new(5.0, 5.0)),
+        ] {
+            let f = streak(covariance, sweep, 2.0);
+            assert!(f.streak.is_some(), "{sweep}");
+            let sum: f32 = pixels().map(|(x, y)| f.weight_at(x, y, None)).sum();
+            assert!((sum - 2.0).abs() < 2.0 * 0.005, "{sweep}: {sum}");
+        }
+    }
+
+    #[test]
+    fn row_spans_cover_exactly_the_pixels_inside_the_cut() {
+        for sweep in [
+            DVec2::new(31.0, -12.0),
+            DVec2::new(0.0, 20.0),
+            DVec2::new(25.0, 0.0),
+        ] {
+            let f = streak(TILTED, sweep, 1.0);
+            let s = f.streak.unwrap();
+            let rows = StreakRows::new(s, f.center, f.bounds);
+            for (x, y) in pixels() {
+                let (dx, dy) = (x as f32 + 0.5 - f.center[0], y as f32 + 0.5 - f.center[1]);
+                let p = s.across[0] * dx + s.across[1] * dy;
+                let v = s.along[0] * dx + s.along[1] * dy;
+                let inside = p.abs() <= 3.0 && v.abs() <= s.half_length + 3.0;
+                let on_edge =
+                    (p.abs() - 3.0).abs() < 1e-3 || (v.abs() - s.half_length - 3.0).abs() < 1e-3;
+                let (x0, x1) = rows.span(y);
+                if !on_edge {
+                    assert_eq!(inside, (x0..x1).contains(&x), "{sweep}: ({x}, {y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_slide_shorter_than_a_standard_deviation_is_the_moment_matched_ellipse() {
+        // Below MIN_STREAK_SIGMAS the footprint is Σ + m mᵀ/12; just above, the streak. Both have
+        // the same moments, and at the threshold they differ by little.
+        let sweep = |k: f64| DVec2::new(k * 0.3f64.sqrt(), 0.0);
+        let below = streak(Sym2::isotropic(0.3), sweep(0.99), 1.0);
+        let above = streak(Sym2::isotropic(0.3), sweep(1.01), 1.0);
+        assert!(below.streak.is_none() && above.streak.is_some());
+        let l1: f32 = pixels()
+            .map(|(x, y)| (below.weight_at(x, y, None) - above.weight_at(x, y, None)).abs())
+            .sum();
+        assert!(l1 < 0.03, "{l1}");
+    }
+
+    #[test]
+    fn the_phi_table_matches_erfc_to_its_stated_error() {
+        for i in 0..=4000 {
+            let t = -7.0 + 14.0 * f64::from(i) / 4000.0;
+            let err = (f64::from(phi(t as f32)) - normal_cdf(t)).abs();
+            assert!(err < 1.5e-6, "Φ({t}) off by {err}");
+        }
+    }
+
+    #[test]
+    fn the_ramp_tail_is_the_integral_of_the_lower_tail() {
+        // ψ(x) = ∫ₓ^∞ Φ(−t) dt by the midpoint rule.
+        for x in [-2.0, 0.0, 1.5, 3.0] {
+            let h = 1e-3;
+            let numeric: f64 = (0..20_000)
+                .map(|i| normal_cdf(-(x + (f64::from(i) + 0.5) * h)) * h)
+                .sum();
+            assert!((numeric - ramp_tail(x)).abs() < 1e-7, "ψ({x})");
+        }
+    }
+}
