@@ -15,7 +15,7 @@ use crate::raster::{
 };
 use crate::scene::camera::Camera;
 use crate::scene::motion::Pose;
-use crate::scene::shutter::{Shutter, ShutterShape, TimeMoments};
+use crate::scene::shutter::{Shutter, TimeMoments};
 use crate::scene::{Lighting, Object};
 use crate::surfels::Surfel;
 use glam::{DAffine3, DMat3, DVec2, DVec3};
@@ -350,9 +350,9 @@ fn between(a: &ScreenSplat, b: &ScreenSplat, s: f64) -> ScreenSplat {
 
 /// The motion ellipse of one surfel over [t0, t1] of the exposure `shutter`, seen as `a` at t0 and
 /// `b` at t1, with the shutter `moments` of the interval; `chained` when it is one of several
-/// consecutive sub-segments. With `exact_streak`, under a box shutter, a splat that slides at
-/// least [`MIN_STREAK_SIGMAS`] is drawn as its exact streak instead (see
-/// [`ScreenSplat::sweep`]).
+/// consecutive sub-segments. With `exact_streak` (for a shutter of uniform weight over the
+/// interval, see [`crate::render::draws_exact_streaks`]), a splat that slides at least
+/// [`MIN_STREAK_SIGMAS`] is drawn as its exact streak instead (see [`ScreenSplat::sweep`]).
 pub(crate) fn motion_ellipse(
     shutter: &Shutter,
     a: &SurfelView,
@@ -402,10 +402,7 @@ pub(crate) fn motion_ellipse(
     let depth_tolerance = a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs();
     let conic = splat.inverse();
     let length_sq = conic.map_or(0.0, |q| q.quadratic(chord));
-    if exact_streak
-        && shutter.shape == ShutterShape::Box
-        && length_sq >= MIN_STREAK_SIGMAS * MIN_STREAK_SIGMAS
-    {
+    if exact_streak && length_sq >= MIN_STREAK_SIGMAS * MIN_STREAK_SIGMAS {
         // A pixel is passed when the splat's centre is nearest it in the splat's own metric, at
         // v/k chord lengths from the middle (docs/math.md, "Exact streaks"), for √3 of the
         // splat's standard deviations along the chord either side.

@@ -29,6 +29,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
     let mut stats = Stats::default();
     let mut footprints = Vec::new();
     let camera = &scene.camera;
+    let exact = super::draws_exact_streaks(plan.method(), &scene.shutter);
     for (object, object_plan, surfels) in plan.drawn() {
         let ObjectMotion::Moving { segments, .. } = &object_plan.motion else {
             object_footprints_at(
@@ -61,7 +62,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             for (k, &segment) in segments.iter().enumerate() {
                 let result = match (&views[k], &views[k + 1]) {
                     (Some(a), Some(b)) => {
-                        motion_ellipse(&scene.shutter, a, b, segment, &moments[k], chained, true)
+                        motion_ellipse(&scene.shutter, a, b, segment, &moments[k], chained, exact)
                             .and_then(|e| {
                                 e.footprint(camera.width, camera.height)
                                     .map_err(Cull::Raster)

@@ -38,7 +38,10 @@ pub use triangles::{Exposure, TriangleStats, MAX_SHADOWED_LIGHTS, MAX_TRIANGLE_I
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{Plan, TOLERANCE_RANGE_PX};
-use crate::raster::{rasterize, rasterize_over, Footprint, Layer, RasterStats, Target, TimeBins};
+use crate::raster::{
+    rasterize, rasterize_over, Footprint, Layer, Profile, RasterStats, Target, TimeBins,
+};
+use crate::scene::shutter::{Shutter, ShutterShape};
 use crate::scene::Scene;
 use crate::style::Style;
 use std::sync::Arc;
@@ -316,6 +319,18 @@ pub type Progress<'a> = &'a dyn Fn();
 /// A setting of `method` out of its range ([`Method::check`]).
 pub fn render(scene: &Scene, method: &Method, progress: Option<Progress>) -> Result<Render> {
     Ok(Plan::new(scene, method)?.render(progress))
+}
+
+/// Whether `method` draws its moving surfels' sub-segments as exact streaks (docs/math.md,
+/// "Exact streaks"), which need a uniform weight over each: `blur`, and the surfel objects
+/// `analytic` draws with it, under a box `shutter`; a hint's trail with the Gaussian profile,
+/// whose copies are timed by a box of their own (other profiles map onto the motion ellipse).
+pub(crate) fn draws_exact_streaks(method: &Method, shutter: &Shutter) -> bool {
+    match method {
+        Method::Blur { .. } | Method::Analytic { .. } => shutter.shape == ShutterShape::Box,
+        Method::Hint { style, .. } => style.trail.profile == Profile::Gaussian,
+        _ => false,
+    }
 }
 
 /// Render as `plan` says, with the method it was made for.

@@ -16,9 +16,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
     motion_ellipse, per_surfel, static_footprint, view_surfel, Cull, Culled, Instant, SurfelView,
 };
-use crate::raster::{
-    rasterize, Footprint, Layer, Profile, RasterStats, ScreenSplat, Target, TimeBins,
-};
+use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
 use crate::scene::shutter::{Shutter, ShutterShape};
 use crate::scene::{Object, Scene};
 use crate::style::{
@@ -200,6 +198,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 style,
                 window,
                 fastest_px: fastest,
+                exact_streaks: super::draws_exact_streaks(plan.method(), &scene.shutter),
             };
             let before = trail_footprints.len();
             let culled = object_trails(
@@ -401,6 +400,8 @@ struct TrailContext<'a> {
     window: Window,
     /// The fastest screen path in the scene, px per exposure (the speed ramp's default top).
     fastest_px: f64,
+    /// Whether pieces are drawn as exact streaks ([`super::draws_exact_streaks`]).
+    exact_streaks: bool,
 }
 
 /// Which of the surfels seen at the flash as `views` emit a trail (counting those that do not,
@@ -504,8 +505,7 @@ fn object_trails(
                         piece.local,
                         &COPY_TIME.moments(v0, v1),
                         piece.chained,
-                        // Other profiles map onto the ellipse.
-                        context.style.trail.profile == Profile::Gaussian,
+                        context.exact_streaks,
                     )
                     .map(|ellipse| {
                         let normals = [&instants[ia], &instants[ib]]
