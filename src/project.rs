@@ -402,64 +402,58 @@ pub(crate) fn motion_ellipse(
     let depth_tolerance = a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs();
     let conic = splat.inverse();
     let length_sq = conic.map_or(0.0, |q| q.quadratic(chord));
-    if exact_streak && length_sq >= MIN_STREAK_SIGMAS * MIN_STREAK_SIGMAS {
-        // A pixel is passed when the splat's centre is nearest it in the splat's own metric, at
-        // v/k chord lengths from the middle (docs/math.md, "Exact streaks"), for √3 of the
-        // splat's standard deviations along the chord either side.
-        let conic = conic.unwrap_or_default();
-        let time = TimeExtent {
-            center: exposure_time(moments.mean),
-            gradient: conic.apply(chord) * (duration / length_sq / exposure),
-            half_width: (3.0 / length_sq).sqrt().min(1.0) * duration / exposure,
-            span: [exposure_time(t0), exposure_time(t1)],
-        };
-        return Ok(ScreenSplat {
-            center: a.center + chord * s,
-            covariance: splat,
-            sweep: chord,
-            weight: mean.weight * moments.mass,
-            colour: mean.colour,
-            depth: mean.depth,
-            depth_gradient,
-            depth_tolerance,
-            time,
-            ..*a
-        });
-    }
-    let uniform_variance = moments.variance / (duration * duration);
-    let mut motion_variance = uniform_variance;
-    let chord_sq = chord.length_squared();
-    // Variance of the splat along the chord, in chord lengths squared (∞ without motion).
-    let along = if chord_sq > 0.0 {
-        splat.quadratic(chord) / (chord_sq * chord_sq)
-    } else {
-        f64::INFINITY
-    };
-    if chained && along.is_finite() {
-        motion_variance = motion_variance.max(0.25 - along);
-    }
-    // A pixel on the chord is covered while the splat passes: about √3 standard deviations of
-    // the splat either side of its passing time (a box of the same variance), within the
-    // sub-segment. Widening spreads a chained ellipse past its chord's ends, into its neighbours'
-    // time; the span grows by as much (√3 × the added standard deviation), or that coverage would
-    // pile into the sub-segment's first and last bins.
-    let reach = (3.0 * (motion_variance - uniform_variance)).sqrt() * duration;
-    let time = TimeExtent {
-        center: exposure_time(moments.mean),
-        gradient: if chord_sq > 0.0 {
-            chord * (duration / chord_sq / exposure)
+    let (covariance, sweep, time) =
+        if exact_streak && length_sq >= MIN_STREAK_SIGMAS * MIN_STREAK_SIGMAS {
+            // A pixel is passed when the splat's centre is nearest it in the splat's own metric, at
+            // v/k chord lengths from the middle (docs/math.md, "Exact streaks"), for √3 of the
+            // splat's standard deviations along the chord either side.
+            let conic = conic.unwrap_or_default();
+            let time = TimeExtent {
+                center: exposure_time(moments.mean),
+                gradient: conic.apply(chord) * (duration / length_sq / exposure),
+                half_width: (3.0 / length_sq).sqrt().min(1.0) * duration / exposure,
+                span: [exposure_time(t0), exposure_time(t1)],
+            };
+            (splat, chord, time)
         } else {
-            DVec2::ZERO
-        },
-        half_width: (3.0 * along).sqrt().min(1.0) * duration / exposure,
-        span: [
-            exposure_time((t0 - reach).max(shutter.open)),
-            exposure_time((t1 + reach).min(shutter.close)),
-        ],
-    };
+            let uniform_variance = moments.variance / (duration * duration);
+            let mut motion_variance = uniform_variance;
+            let chord_sq = chord.length_squared();
+            // Variance of the splat along the chord, in chord lengths squared (∞ without motion).
+            let along = if chord_sq > 0.0 {
+                splat.quadratic(chord) / (chord_sq * chord_sq)
+            } else {
+                f64::INFINITY
+            };
+            if chained && along.is_finite() {
+                motion_variance = motion_variance.max(0.25 - along);
+            }
+            // A pixel on the chord is covered while the splat passes: about √3 standard deviations
+            // of the splat either side of its passing time (a box of the same variance), within the
+            // sub-segment. Widening spreads a chained ellipse past its chord's ends, into its
+            // neighbours' time; the span grows by as much (√3 × the added standard deviation), or
+            // that coverage would pile into the sub-segment's first and last bins.
+            let reach = (3.0 * (motion_variance - uniform_variance)).sqrt() * duration;
+            let time = TimeExtent {
+                center: exposure_time(moments.mean),
+                gradient: if chord_sq > 0.0 {
+                    chord * (duration / chord_sq / exposure)
+                } else {
+                    DVec2::ZERO
+                },
+                half_width: (3.0 * along).sqrt().min(1.0) * duration / exposure,
+                span: [
+                    exposure_time((t0 - reach).max(shutter.open)),
+                    exposure_time((t1 + reach).min(shutter.close)),
+                ],
+            };
+            let covariance = splat + Sym2::outer(chord).scaled(motion_variance);
+            (covariance, DVec2::ZERO, time)
+        };
     Ok(ScreenSplat {
         center: a.center + chord * s,
-        covariance: splat + Sym2::outer(chord).scaled(motion_variance),
+        covariance,
+        sweep,
         weight: mean.weight * moments.mass,
         colour: mean.colour,
         depth: mean.depth,
