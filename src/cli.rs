@@ -79,7 +79,7 @@ struct SimplifyArgs {
 enum MethodName {
     /// Sharp EWA splatting at one instant.
     Static,
-    /// Motion ellipses from summed covariances, one pass.
+    /// Motion footprints in one pass: exact streaks (box shutter) or motion ellipses.
     Blur,
     /// Average of N static frames at stratified shutter times.
     Reference,

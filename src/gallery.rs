@@ -290,7 +290,7 @@ fn index_html(rows: &[SceneShots], styles: &[Arc<Style>], samples: usize) -> Str
     let _ = writeln!(
         html,
         "<p class=\"meta\">Each scene drawn as a motion hint (the object sharp at the flash, a styled trail) beside the \
-         physically based blur (motion ellipses, τ = {DEFAULT_TOLERANCE_PX} px) and the reference (the shutter-weighted \
+         physically based blur (exact streaks, τ = {DEFAULT_TOLERANCE_PX} px) and the reference (the shutter-weighted \
          average of {samples} frames, at full detail). Times are plan + render on this machine, and as ratios to a sharp \
          <code>static</code> render of the same scene. Errors are RMSE of linear colour and mean ꟻLIP against the \
          reference; a hint is an illustration, so its error measures how far it departs from the photograph.</p>"

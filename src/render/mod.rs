@@ -4,7 +4,8 @@
 //! - [`Method::Static`]: EWA surface splatting at one instant;
 //! - [`Method::Reference`]: the shutter-weighted average of N static frames (the accumulation
 //!   buffer), the ground truth every other method is measured against;
-//! - [`Method::Blur`]: one pass of motion ellipses (Guan & Mueller §3.3);
+//! - [`Method::Blur`]: one pass of motion footprints: exact streaks under a box shutter, Guan &
+//!   Mueller's motion ellipses (§3.3) otherwise;
 //! - [`Method::Hint`]: the object sharp at the flash plus a styled trail of motion ellipses
 //!   (Guan & Mueller §3.1, §4);
 //! - [`Method::Kernel3d`]: 3D spatio-temporal kernels integrated along each pixel ray, with exact
@@ -75,7 +76,8 @@ pub enum Method {
         /// Frames averaged, 1 to [`MAX_SAMPLES`].
         samples: usize,
     },
-    /// Motion ellipses from summed covariances, one pass.
+    /// Motion blur in one pass: each sub-segment of a surfel's path as its exact streak under a
+    /// box shutter, else as the motion ellipse of summed covariances.
     Blur {
         /// Largest distance of a curved screen path from its linear sub-segments, px (within
         /// [`TOLERANCE_RANGE_PX`]).
