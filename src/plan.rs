@@ -486,7 +486,6 @@ impl<'a> Plan<'a> {
     }
 }
 
-/// Whether `method` draws `object` as triangles.
 /// How a moving object's sub-segments are drawn, which decides what they must hold to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Drawn {
@@ -520,6 +519,7 @@ impl Drawn {
     }
 }
 
+/// Whether `method` draws `object` as triangles.
 fn draws_triangles(method: &Method, object: &Object) -> bool {
     object.mesh().is_some()
         && matches!(

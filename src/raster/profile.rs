@@ -35,9 +35,15 @@ static GAUSSIAN_TABLE: LazyLock<GaussianTable> = LazyLock::new(|| {
 #[inline]
 pub(super) fn exp_half(table: &GaussianTable, q: f32) -> f32 {
     // q ≥ 0 up to rounding; a negative q saturates to the first entry.
-    let u = q * (GAUSSIAN_STEPS as f32 / CUTOFF_Q);
+    interpolate(table, q * (GAUSSIAN_STEPS as f32 / CUTOFF_Q))
+}
+
+/// Linear interpolation in `table` at the continuous index `u` (entries at integers, one past
+/// the last step); indices below 0 take the first step, those past the last step the last one.
+#[inline]
+pub(super) fn interpolate<const N: usize>(table: &[f32; N], u: f32) -> f32 {
     // Through u32: fewer instructions than a float to usize on x86-64 (3 % of the tile pass).
-    let i = (u as u32).min(GAUSSIAN_STEPS as u32) as usize;
+    let i = (u as u32).min(N as u32 - 2) as usize;
     let (v0, v1) = (table[i], table[i + 1]);
     v0 + (v1 - v0) * (u - i as f32)
 }

@@ -12,7 +12,7 @@
 //! and the amplitude is raised by the mass the cut leaves out, found in closed form. Derivation:
 //! docs/math.md, "Exact streaks".
 
-use super::profile::{exp_half, gaussian_table, GaussianTable};
+use super::profile::{exp_half, gaussian_table, interpolate, GaussianTable};
 use super::{ceil_non_negative, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
 use crate::math::Sym2;
 use glam::DVec2;
@@ -32,7 +32,7 @@ const PHI_STEPS: usize = 2048;
 
 /// Φ(t), the standard normal distribution function, at t = −PHI_RANGE + i · 2 PHI_RANGE /
 /// PHI_STEPS, with one entry past the end.
-static PHI_TABLE: LazyLock<[f32; PHI_STEPS + 2]> = LazyLock::new(|| {
+static PHI_TABLE: LazyLock<PhiTable> = LazyLock::new(|| {
     std::array::from_fn(|i| {
         let t = -f64::from(PHI_RANGE) + i as f64 * 2.0 * f64::from(PHI_RANGE) / PHI_STEPS as f64;
         normal_cdf(t) as f32
@@ -50,18 +50,17 @@ fn ramp_tail(x: f64) -> f64 {
     density - x * normal_cdf(-x)
 }
 
-/// Φ(t) from the table.
+/// The table of Φ.
+type PhiTable = [f32; PHI_STEPS + 2];
+
+/// Φ(t) from `table` (the [`PHI_TABLE`]).
 #[inline]
-fn phi(t: f32) -> f32 {
-    let table = &*PHI_TABLE;
+fn phi(table: &PhiTable, t: f32) -> f32 {
     let u = (t + PHI_RANGE) * (PHI_STEPS as f32 / (2.0 * PHI_RANGE));
     if !(u > 0.0) {
         return 0.0;
     }
-    // Through u32, as in the Gaussian table: a cheaper conversion than to usize.
-    let i = (u as u32).min(PHI_STEPS as u32) as usize;
-    let (v0, v1) = (table[i], table[i + 1]);
-    v0 + (v1 - v0) * (u - i as f32)
+    interpolate(table, u)
 }
 
 /// A footprint's streak: the linear maps from a pixel offset to its place across and along the
@@ -131,7 +130,9 @@ pub(super) struct StreakRows {
     /// The bounds' first and last column.
     first: f32,
     last: f32,
+    /// The tables, fetched once per footprint rather than through their lazy cells per pixel.
     gaussian: &'static GaussianTable,
+    phi: &'static PhiTable,
 }
 
 impl StreakRows {
@@ -144,6 +145,7 @@ impl StreakRows {
             first: x0 as f32,
             last: x1 as f32 - 1.0,
             gaussian: gaussian_table(),
+            phi: &PHI_TABLE,
         }
     }
 }
@@ -198,7 +200,7 @@ impl Shape for StreakRows {
         if q > CUTOFF_Q || v.abs() > h + CUTOFF_SIGMAS as f32 {
             return 0.0;
         }
-        exp_half(self.gaussian, q) * (phi(h - v) - phi(-h - v))
+        exp_half(self.gaussian, q) * (phi(self.phi, h - v) - phi(self.phi, -h - v))
     }
 }
 
@@ -335,7 +337,7 @@ mod tests {
     fn the_phi_table_matches_erfc_to_its_stated_error() {
         for i in 0..=4000 {
             let t = -7.0 + 14.0 * f64::from(i) / 4000.0;
-            let err = (f64::from(phi(t as f32)) - normal_cdf(t)).abs();
+            let err = (f64::from(phi(&PHI_TABLE, t as f32)) - normal_cdf(t)).abs();
             assert!(err < 1.5e-6, "Φ({t}) off by {err}");
         }
     }
