@@ -60,6 +60,12 @@ impl Instant {
         self.to_view.transform_vector3(v)
     }
 
+    /// Where an object-space point is on screen, `None` when not in front of the near plane.
+    #[must_use]
+    pub fn screen_point(&self, camera: &Camera, p: DVec3) -> Option<DVec2> {
+        camera.project(self.view_point(p)).map(|(screen, _)| screen)
+    }
+
     /// An object-space point in world space.
     #[must_use]
     pub fn world_point(&self, p: DVec3) -> DVec3 {
@@ -348,20 +354,54 @@ fn between(a: &ScreenSplat, b: &ScreenSplat, s: f64) -> ScreenSplat {
     }
 }
 
-/// The motion ellipse of one surfel over [t0, t1] of the exposure `shutter`, seen as `a` at t0 and
-/// `b` at t1, with the shutter `moments` of the interval; `chained` when it is one of several
-/// consecutive sub-segments. With `exact_streak` (for a shutter of uniform weight over the
-/// interval, see [`crate::render::draws_exact_streaks`]), a splat that slides at least
-/// [`MIN_STREAK_SIGMAS`] is drawn as its exact streak instead (see [`ScreenSplat::sweep`]).
+/// How far a footprint standing for the screen path through `[start, middle, end]` (where a
+/// surfel is at t0, (t0 + t1)/2 and t1) must move off its chord, across it, to lie on the path's
+/// mean position over the part of [t0, t1] and the shutter weight that `moments` describe. For a
+/// path quadratic in time, its departure from the chord is the sagitta (`middle` less the
+/// chord's middle) × 4u(1 − u) at a share u of [t0, t1], whose mean is 4(E[u] − E[u²]): ⅔ of the
+/// sagitta under a box shutter over the whole interval. Only the sagitta's part across the chord
+/// counts: along it, a path's departure is a change of speed (a surfel moving in depth), which
+/// moves light within the streak rather than the streak. docs/math.md, "A bent path's mean".
+fn path_bend([start, middle, end]: [DVec2; 3], [t0, t1]: [f64; 2], moments: &TimeMoments) -> DVec2 {
+    let (duration, chord) = (t1 - t0, end - start);
+    if !(duration > 0.0 && chord.length_squared() > 0.0) {
+        return DVec2::ZERO;
+    }
+    let sagitta = middle - 0.5 * (start + end);
+    let across = sagitta - chord * (sagitta.dot(chord) / chord.length_squared());
+    let mean = (moments.mean - t0) / duration;
+    let mean_square = moments.variance / (duration * duration) + mean * mean;
+    across * (4.0 * (mean - mean_square))
+}
+
+/// A surfel seen over one sub-segment [t0, t1]: at its two ends, and where its centre is on
+/// screen at (t0 + t1)/2 (`None` when not in front of the near plane).
+pub(crate) struct SubSegmentView<'a> {
+    pub(crate) start: &'a SurfelView,
+    pub(crate) middle: Option<DVec2>,
+    pub(crate) end: &'a SurfelView,
+}
+
+/// The motion ellipse of one surfel over [t0, t1] of the exposure `shutter`, `seen` there, with
+/// the shutter `moments` of the interval; `chained` when it is one of several consecutive
+/// sub-segments. With `exact_streak` (for a shutter of uniform weight over the interval, see
+/// [`crate::render::draws_exact_streaks`]), a splat that slides at least [`MIN_STREAK_SIGMAS`]
+/// is drawn as its exact streak instead (see [`ScreenSplat::sweep`]). Where the surfel is at the
+/// middle moves the footprint off its chord onto the bent path's mean position under the
+/// shutter (docs/math.md, "A bent path's mean").
 pub(crate) fn motion_ellipse(
     shutter: &Shutter,
-    a: &SurfelView,
-    b: &SurfelView,
+    seen: &SubSegmentView,
     [t0, t1]: [f64; 2],
     moments: &TimeMoments,
     chained: bool,
     exact_streak: bool,
 ) -> Result<ScreenSplat, Cull> {
+    let SubSegmentView {
+        start: a,
+        middle,
+        end: b,
+    } = *seen;
     // A surfel turning edge-on within the sub-segment shows its face only until (or from) the
     // turn, its facing cosine taken as linear in time: the ellipse is clipped to that part, and
     // at the turn its projected area is zero. (Weighting the whole sub-segment by the share of
@@ -386,6 +426,10 @@ pub(crate) fn motion_ellipse(
             }
         }
     }
+    // A clipped ellipse's ends lie on the chord, so its path bends from the same line.
+    let bend = middle.map_or(DVec2::ZERO, |middle| {
+        path_bend([a.splat.center, middle, b.splat.center], [t0, t1], &moments)
+    });
     let ([t0, t1], moments) = (span, &moments);
     let (a, b) = (&a_splat, &b_splat);
     // The splat at the sub-segment's mean time.
@@ -451,7 +495,7 @@ pub(crate) fn motion_ellipse(
             (covariance, DVec2::ZERO, time)
         };
     Ok(ScreenSplat {
-        center: a.center + chord * s,
+        center: a.center + chord * s + bend,
         covariance,
         sweep,
         weight: mean.weight * moments.mass,

@@ -12,7 +12,8 @@
 use super::{draw, Exposure, Render, Stats};
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
-    motion_ellipse, object_footprints_at, per_surfel, view_surfel, Cull, Instant, SurfelView,
+    motion_ellipse, object_footprints_at, per_surfel, view_surfel, Cull, Instant, SubSegmentView,
+    SurfelView,
 };
 use crate::raster::TimeBins;
 use crate::scene::shutter::TimeMoments;
@@ -48,6 +49,12 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             .iter()
             .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
             .collect();
+        // Where each surfel is at each sub-segment's middle: its path's bend (see
+        // `motion_ellipse`).
+        let middles: Vec<Instant> = segments
+            .iter()
+            .map(|&[t0, t1]| Instant::new(camera, &object.motion.pose_at(0.5 * (t0 + t1))))
+            .collect();
         let chained = segments.len() > 1;
         let moments: Vec<TimeMoments> = segments
             .iter()
@@ -61,8 +68,13 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
                 .collect();
             for (k, &segment) in segments.iter().enumerate() {
                 let result = match (&views[k], &views[k + 1]) {
-                    (Some(a), Some(b)) => {
-                        motion_ellipse(&scene.shutter, a, b, segment, &moments[k], chained, exact)
+                    (Some(start), Some(end)) => {
+                        let seen = SubSegmentView {
+                            start,
+                            middle: middles[k].screen_point(camera, surfel.position),
+                            end,
+                        };
+                        motion_ellipse(&scene.shutter, &seen, segment, &moments[k], chained, exact)
                             .and_then(|e| {
                                 e.footprint(camera.width, camera.height)
                                     .map_err(Cull::Raster)

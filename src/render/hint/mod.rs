@@ -14,7 +14,8 @@ use super::{MethodStats, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
-    motion_ellipse, per_surfel, static_footprint, view_surfel, Cull, Culled, Instant, SurfelView,
+    motion_ellipse, per_surfel, static_footprint, view_surfel, Cull, Culled, Instant,
+    SubSegmentView, SurfelView,
 };
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
 use crate::scene::shutter::{Shutter, ShutterShape};
@@ -479,6 +480,13 @@ fn object_trails(
         .iter()
         .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
         .collect();
+    let middles: Vec<Instant> = pieces
+        .iter()
+        .map(|piece| {
+            let [t0, t1] = piece.real;
+            Instant::new(camera, &object.motion.pose_at(0.5 * (t0 + t1)))
+        })
+        .collect();
     per_surfel(surfels.len(), out, |i, kept, culled| {
         if !emits[i] {
             return;
@@ -493,15 +501,19 @@ fn object_trails(
                 Some(view)
             })
             .collect();
-        for piece in &pieces {
+        for (piece, middle) in pieces.iter().zip(&middles) {
             let [ia, ib] = piece.ends;
             let result = match (&views[ia], &views[ib]) {
                 (Some(a), Some(b)) => {
                     let [v0, v1] = piece.local;
+                    let seen = SubSegmentView {
+                        start: a,
+                        middle: middle.screen_point(camera, surfel.position),
+                        end: b,
+                    };
                     motion_ellipse(
                         &COPY_TIME,
-                        a,
-                        b,
+                        &seen,
                         piece.local,
                         &COPY_TIME.moments(v0, v1),
                         piece.chained,
