@@ -169,6 +169,7 @@ impl Located {
                 time: TimeExtent::WHOLE_FRAME,
                 profile: Profile::Gaussian,
                 sweep: DVec2::ZERO,
+                sweep_change: 0.0,
                 additive: false,
             },
             facing,
@@ -382,6 +383,21 @@ pub(crate) struct SubSegmentView<'a> {
     pub(crate) end: &'a SurfelView,
 }
 
+/// How much more of its time a surfel on the screen path through `[start, middle, end]` (where it
+/// is at the start, middle and end of a sub-segment) spends at the end of its chord than at the
+/// start, as a share of the mean: for a path quadratic in time whose middle lies c chord lengths
+/// past the chord's middle, its speed along the chord is 1 + 4c(1 − 2u) at a share u of the
+/// sub-segment, so its density along the chord is 1 + 8c·x to first order, x chord lengths from
+/// the middle. docs/math.md, "A streak whose light changes along it".
+fn speed_change([start, middle, end]: [DVec2; 3]) -> f64 {
+    let chord = end - start;
+    let length_sq = chord.length_squared();
+    if !(length_sq > 0.0) {
+        return 0.0;
+    }
+    8.0 * (middle - 0.5 * (start + end)).dot(chord) / length_sq
+}
+
 /// The motion ellipse of one surfel over [t0, t1] of the exposure `shutter`, `seen` there, with
 /// the shutter `moments` of the interval; `chained` when it is one of several consecutive
 /// sub-segments. With `exact_streak` (for a shutter of uniform weight over the interval, see
@@ -430,6 +446,10 @@ pub(crate) fn motion_ellipse(
     let bend = middle.map_or(DVec2::ZERO, |middle| {
         path_bend([a.splat.center, middle, b.splat.center], [t0, t1], &moments)
     });
+    let speed_change = match middle {
+        Some(middle) if span == [t0, t1] => speed_change([a.splat.center, middle, b.splat.center]),
+        _ => 0.0,
+    };
     let ([t0, t1], moments) = (span, &moments);
     let (a, b) = (&a_splat, &b_splat);
     // The splat at the sub-segment's mean time.
@@ -494,10 +514,16 @@ pub(crate) fn motion_ellipse(
             let covariance = splat + Sym2::outer(chord).scaled(motion_variance);
             (covariance, DVec2::ZERO, time)
         };
+    let weight_change = if mean.weight > 0.0 {
+        (b.weight - a.weight) / mean.weight
+    } else {
+        0.0
+    };
     Ok(ScreenSplat {
         center: a.center + chord * s + bend,
         covariance,
         sweep,
+        sweep_change: weight_change + speed_change,
         weight: mean.weight * moments.mass,
         colour: mean.colour,
         depth: mean.depth,

@@ -377,6 +377,7 @@ mod tests {
             },
             profile: crate::raster::Profile::Gaussian,
             sweep: DVec2::ZERO,
+            sweep_change: 0.0,
             additive: false,
         };
         (splat.footprint(1, 1).unwrap(), value)

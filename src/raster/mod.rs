@@ -179,6 +179,12 @@ pub struct ScreenSplat {
     /// own; a shorter slide, or another profile, as the ellipse of `covariance` + chord
     /// chordᵀ/12, which has the streak's moments (docs/math.md, "Exact streaks").
     pub sweep: DVec2,
+    /// How much the light the splat leaves along `sweep` changes from its start to its end, as a
+    /// share of its mean: its density along the chord is 1 + change · x at x chord lengths from
+    /// the middle (x ∈ [−½, ½]), which keeps the weight. A surfel whose screen area grows or
+    /// shrinks, or that slows down or speeds up, leaves such a streak; only exact streaks use it
+    /// (docs/math.md, "A streak whose light changes along it").
+    pub sweep_change: f64,
     /// Emits light instead of covering: it adds weight × colour, dimmed by what lies in front of
     /// it, and hides nothing (additive motion trails, Guan & Mueller §4).
     pub additive: bool,
@@ -189,7 +195,7 @@ impl ScreenSplat {
     /// include the pre-filter.
     pub fn footprint(&self, width: u32, height: u32) -> Result<Footprint, Rejection> {
         let streak = if self.sweep != DVec2::ZERO && self.profile == Profile::Gaussian {
-            StreakGeometry::of(&self.covariance, self.sweep)
+            StreakGeometry::of(&self.covariance, self.sweep, self.sweep_change)
         } else {
             None
         };
@@ -844,6 +850,7 @@ mod tests {
             time: TimeExtent::WHOLE_FRAME,
             profile: Profile::Gaussian,
             sweep: DVec2::ZERO,
+            sweep_change: 0.0,
             additive: false,
         }
     }

@@ -9,8 +9,10 @@
 //! ```
 //!
 //! which integrates to one. It is cut where |p| > 3 or |v| > k/2 + 3 (a parallelogram on screen)
-//! and the amplitude is raised by the mass the cut leaves out, found in closed form. Derivation:
-//! docs/math.md, "Exact streaks".
+//! and the amplitude is raised by the mass the cut leaves out, found in closed form. A splat whose
+//! light grows or fades along the chord (its screen area changing, or its speed) leaves the same
+//! streak with a linear density along it, also in closed form. Derivation: docs/math.md, "Exact
+//! streaks" and "A streak whose light changes along it".
 
 use super::profile::{exp_half, gaussian_table, interpolate, GaussianTable};
 use super::{ceil_non_negative, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
@@ -22,6 +24,9 @@ use std::sync::LazyLock;
 /// moment-matched ellipse instead: the streak is then nearly Gaussian, and the erf difference
 /// divided by a short chord would lose its digits.
 pub const MIN_STREAK_SIGMAS: f64 = 1.0;
+
+/// 1/√(2π).
+const INV_SQRT_TAU: f32 = 0.398_942_3;
 
 /// Φ is tabulated over [−PHI_RANGE, PHI_RANGE]; beyond, it is 0 or 1 to within 10⁻⁹.
 const PHI_RANGE: f32 = 6.0;
@@ -73,6 +78,9 @@ pub struct Streak {
     pub along: [f32; 2],
     /// Half the chord, k/2.
     pub half_length: f32,
+    /// The slide's density is 1 + slope · s at s standard deviations from the chord's middle
+    /// (|slope| ≤ 1/(k/2), so it is nowhere negative).
+    pub slope: f32,
 }
 
 /// A streak with what its footprint needs besides.
@@ -87,9 +95,10 @@ pub(super) struct StreakGeometry {
 
 impl StreakGeometry {
     /// The streak of a splat of `covariance` (px², pre-filter included) sliding along `chord`
-    /// (px); `None` when the chord is shorter than [`MIN_STREAK_SIGMAS`] or the covariance is
-    /// singular.
-    pub(super) fn of(covariance: &Sym2, chord: DVec2) -> Option<StreakGeometry> {
+    /// (px), its light along the chord changing by `change` of its mean from end to end (see
+    /// [`super::ScreenSplat::sweep_change`]; clamped to ±2, where one end has none); `None` when
+    /// the chord is shorter than [`MIN_STREAK_SIGMAS`] or the covariance is singular.
+    pub(super) fn of(covariance: &Sym2, chord: DVec2, change: f64) -> Option<StreakGeometry> {
         let conic = covariance.inverse()?;
         let length = conic.quadratic(chord).sqrt();
         let normal = chord.perp();
@@ -113,6 +122,7 @@ impl StreakGeometry {
                 across: across.as_vec2().to_array(),
                 along: along.as_vec2().to_array(),
                 half_length: (0.5 * length) as f32,
+                slope: (change.clamp(-2.0, 2.0) / length) as f32,
             },
             integral: (2.0 * std::f64::consts::PI).sqrt() * kept_across * kept_along,
             extent,
@@ -200,7 +210,27 @@ impl Shape for StreakRows {
         if q > CUTOFF_Q || v.abs() > h + CUTOFF_SIGMAS as f32 {
             return 0.0;
         }
-        exp_half(self.gaussian, q) * (phi(self.phi, h - v) - phi(self.phi, -h - v))
+        let swept = phi(self.phi, h - v) - phi(self.phi, -h - v);
+        if s.slope == 0.0 {
+            return exp_half(self.gaussian, q) * swept;
+        }
+        // ∫ (1 + slope·s) φ(v − s) ds over |s| ≤ h (docs/math.md, "A streak whose light changes
+        // along it").
+        let ends = self.density(v + h) - self.density(v - h);
+        exp_half(self.gaussian, q) * (swept * (1.0 + s.slope * v) + s.slope * ends)
+    }
+}
+
+impl StreakRows {
+    /// φ(x), the standard normal density, from the Gaussian table; zero beyond the cut-off, like
+    /// the splat it comes from.
+    #[inline]
+    fn density(&self, x: f32) -> f32 {
+        let q = x * x;
+        if q > CUTOFF_Q {
+            return 0.0;
+        }
+        exp_half(self.gaussian, q) * INV_SQRT_TAU
     }
 }
 
@@ -212,6 +242,11 @@ mod tests {
     /// A Gaussian splat of `covariance` sliding along `sweep`, centred at (40.3, 31.6) in a
     /// 96 × 64 image.
     fn streak(covariance: Sym2, sweep: DVec2, weight: f64) -> Footprint {
+        sloped_streak(covariance, sweep, 0.0, weight)
+    }
+
+    /// [`streak`] with its light changing by `change` of its mean along the chord.
+    fn sloped_streak(covariance: Sym2, sweep: DVec2, change: f64, weight: f64) -> Footprint {
         ScreenSplat {
             center: DVec2::new(40.3, 31.6),
             covariance,
@@ -223,6 +258,7 @@ mod tests {
             time: TimeExtent::WHOLE_FRAME,
             profile: Profile::Gaussian,
             sweep,
+            sweep_change: change,
             additive: false,
         }
         .footprint(96, 64)
@@ -242,37 +278,41 @@ mod tests {
     #[test]
     fn a_streak_is_the_splat_integrated_along_its_chord() {
         // The closed form against the midpoint rule over 4,000 positions of the sliding splat, at
-        // pixels inside the cut: the tables' error (10⁻⁶ of the peak) and f32 rounding remain.
+        // pixels inside the cut, with its light even along the chord, growing from a third of
+        // its mean to 5/3 of it, and fading to nothing: the tables' error (10⁻⁶ of the peak), the
+        // density's cut at 3σ and f32 rounding remain.
         let (covariance, sweep) = (TILTED, DVec2::new(31.0, -12.0));
-        let f = streak(covariance, sweep, 5.0);
-        assert!(f.streak.is_some());
         let conic = covariance.inverse().unwrap();
         let norm = 5.0 / (std::f64::consts::TAU * covariance.det().sqrt());
-        let mut checked = 0;
-        for (x, y) in pixels() {
-            let d = DVec2::new(f64::from(x) + 0.5 - 40.3, f64::from(y) + 0.5 - 31.6);
-            let steps = 4000;
-            let exact: f64 = (0..steps)
-                .map(|i| {
-                    let u = (f64::from(i) + 0.5) / f64::from(steps) - 0.5;
-                    (-0.5 * conic.quadratic(d - u * sweep)).exp()
-                })
-                .sum::<f64>()
-                * norm
-                / f64::from(steps);
-            let drawn = f64::from(f.weight_at(x, y, None));
-            if drawn > 0.0 {
-                // The amplitude also carries the cut's gain, 0.27 %.
-                assert!(
-                    (drawn - exact).abs() < 0.004 * exact + 2e-5 * norm,
-                    "({x}, {y}): {drawn} vs {exact}"
-                );
-                checked += 1;
-            } else {
-                assert!(exact < 0.012 * norm, "({x}, {y}) left out at {exact}");
+        for change in [0.0, 1.333, -2.0] {
+            let f = sloped_streak(covariance, sweep, change, 5.0);
+            assert!(f.streak.is_some());
+            let mut checked = 0;
+            for (x, y) in pixels() {
+                let d = DVec2::new(f64::from(x) + 0.5 - 40.3, f64::from(y) + 0.5 - 31.6);
+                let steps = 4000;
+                let exact: f64 = (0..steps)
+                    .map(|i| {
+                        let u = (f64::from(i) + 0.5) / f64::from(steps) - 0.5;
+                        (1.0 + change * u) * (-0.5 * conic.quadratic(d - u * sweep)).exp()
+                    })
+                    .sum::<f64>()
+                    * norm
+                    / f64::from(steps);
+                let drawn = f64::from(f.weight_at(x, y, None));
+                if drawn > 0.0 {
+                    // The amplitude also carries the cut's gain, 0.27 %.
+                    assert!(
+                        (drawn - exact).abs() < 0.004 * exact + 2e-5 * norm,
+                        "change {change}, ({x}, {y}): {drawn} vs {exact}"
+                    );
+                    checked += 1;
+                } else {
+                    assert!(exact < 0.012 * norm, "({x}, {y}) left out at {exact}");
+                }
             }
+            assert!(checked > 200, "{checked}");
         }
-        assert!(checked > 200, "{checked}");
     }
 
     #[test]
@@ -287,10 +327,13 @@ mod tests {
             (TILTED, DVec2::new(-1.5, 1.8)),
             (Sym2::isotropic(4.0), DVec2::new(5.0, 5.0)),
         ] {
-            let f = streak(covariance, sweep, 2.0);
-            assert!(f.streak.is_some(), "{sweep}");
-            let sum: f32 = pixels().map(|(x, y)| f.weight_at(x, y, None)).sum();
-            assert!((sum - 2.0).abs() < 2.0 * 0.005, "{sweep}: {sum}");
+            // A light changing along the chord moves light within the streak, not its sum.
+            for change in [0.0, 0.8, -2.0] {
+                let f = sloped_streak(covariance, sweep, change, 2.0);
+                assert!(f.streak.is_some(), "{sweep}");
+                let sum: f32 = pixels().map(|(x, y)| f.weight_at(x, y, None)).sum();
+                assert!((sum - 2.0).abs() < 2.0 * 0.005, "{sweep}, {change}: {sum}");
+            }
         }
     }
 
