@@ -14,7 +14,7 @@
 //! streak with a linear density along it, also in closed form. Derivation: docs/math.md, "Exact
 //! streaks" and "A streak whose light changes along it".
 
-use super::profile::{exp_half, gaussian_table, interpolate, GaussianTable};
+use super::profile::{exp_half, gaussian_table, GaussianTable};
 use super::{ceil_non_negative, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
 use crate::math::Sym2;
 use glam::DVec2;
@@ -25,24 +25,27 @@ use std::sync::LazyLock;
 /// divided by a short chord would lose its digits.
 pub const MIN_STREAK_SIGMAS: f64 = 1.0;
 
-/// 1/√(2π).
-const INV_SQRT_TAU: f32 = 0.398_942_3;
-
 /// Φ is tabulated over [−PHI_RANGE, PHI_RANGE]; beyond, it is 0 or 1 to within 10⁻⁹.
 const PHI_RANGE: f32 = 6.0;
 
 /// Steps of the Φ table. Linear interpolation errs by at most h²/8 · max|φ'| = (12/2048)²/8 ·
-/// 0.242 ≈ 1.0·10⁻⁶.
+/// 0.242 ≈ 1.0·10⁻⁶ in Φ, and h²/8 · max|φ''| ≈ 1.7·10⁻⁶ in φ.
 const PHI_STEPS: usize = 2048;
 
-/// Φ(t), the standard normal distribution function, at t = −PHI_RANGE + i · 2 PHI_RANGE /
-/// PHI_STEPS, with one entry past the end.
+/// Φ(t) and φ(t), the standard normal distribution and density, at t = −PHI_RANGE + i · 2
+/// PHI_RANGE / PHI_STEPS for i = 0 ..= PHI_STEPS; side by side, so that a lookup of both reads
+/// one place.
 static PHI_TABLE: LazyLock<PhiTable> = LazyLock::new(|| {
     std::array::from_fn(|i| {
         let t = -f64::from(PHI_RANGE) + i as f64 * 2.0 * f64::from(PHI_RANGE) / PHI_STEPS as f64;
-        normal_cdf(t) as f32
+        [normal_cdf(t) as f32, normal_density(t) as f32]
     })
 });
+
+/// φ(t) in f64.
+fn normal_density(t: f64) -> f64 {
+    (-0.5 * t * t).exp() / (2.0 * std::f64::consts::PI).sqrt()
+}
 
 /// Φ(t) in f64, from erfc so that the lower tail keeps its digits.
 fn normal_cdf(t: f64) -> f64 {
@@ -51,21 +54,34 @@ fn normal_cdf(t: f64) -> f64 {
 
 /// ψ(x) = ∫ₓ^∞ Φ(−t) dt = φ(x) − x Φ(−x): the mass an erf ramp holds beyond x.
 fn ramp_tail(x: f64) -> f64 {
-    let density = (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt();
-    density - x * normal_cdf(-x)
+    normal_density(x) - x * normal_cdf(-x)
 }
 
-/// The table of Φ.
-type PhiTable = [f32; PHI_STEPS + 2];
+/// The table of Φ and φ.
+type PhiTable = [[f32; 2]; PHI_STEPS + 1];
 
 /// Φ(t) from `table` (the [`PHI_TABLE`]).
 #[inline]
 fn phi(table: &PhiTable, t: f32) -> f32 {
-    let u = (t + PHI_RANGE) * (PHI_STEPS as f32 / (2.0 * PHI_RANGE));
+    phi_and_density(table, t)[0]
+}
+
+/// Φ(t) and φ(t) from `table`, each interpolated linearly.
+#[inline]
+fn phi_and_density(table: &PhiTable, t: f32) -> [f32; 2] {
+    // Past the last step, its end.
+    let u = ((t + PHI_RANGE) * (PHI_STEPS as f32 / (2.0 * PHI_RANGE))).min(PHI_STEPS as f32);
     if !(u > 0.0) {
-        return 0.0;
+        return [0.0, 0.0];
     }
-    interpolate(table, u)
+    // Through u32, as in `profile::interpolate`.
+    let i = (u as u32).min(PHI_STEPS as u32 - 1) as usize;
+    let ([phi0, density0], [phi1, density1]) = (table[i], table[i + 1]);
+    let f = u - i as f32;
+    [
+        phi0 + (phi1 - phi0) * f,
+        density0 + (density1 - density0) * f,
+    ]
 }
 
 /// A footprint's streak: the linear maps from a pixel offset to its place across and along the
@@ -210,27 +226,17 @@ impl Shape for StreakRows {
         if q > CUTOFF_Q || v.abs() > h + CUTOFF_SIGMAS as f32 {
             return 0.0;
         }
-        let swept = phi(self.phi, h - v) - phi(self.phi, -h - v);
         if s.slope == 0.0 {
-            return exp_half(self.gaussian, q) * swept;
+            return exp_half(self.gaussian, q) * (phi(self.phi, h - v) - phi(self.phi, -h - v));
         }
         // ∫ (1 + slope·s) φ(v − s) ds over |s| ≤ h (docs/math.md, "A streak whose light changes
-        // along it").
-        let ends = self.density(v + h) - self.density(v - h);
-        exp_half(self.gaussian, q) * (swept * (1.0 + s.slope * v) + s.slope * ends)
-    }
-}
-
-impl StreakRows {
-    /// φ(x), the standard normal density, from the Gaussian table; zero beyond the cut-off, like
-    /// the splat it comes from.
-    #[inline]
-    fn density(&self, x: f32) -> f32 {
-        let q = x * x;
-        if q > CUTOFF_Q {
-            return 0.0;
-        }
-        exp_half(self.gaussian, q) * INV_SQRT_TAU
+        // along it"), with φ(v − h) = φ(h − v) and φ(v + h) = φ(−h − v) from the same lookups.
+        let ([upper, density_upper], [lower, density_lower]) = (
+            phi_and_density(self.phi, h - v),
+            phi_and_density(self.phi, -h - v),
+        );
+        let ends = density_lower - density_upper;
+        exp_half(self.gaussian, q) * ((upper - lower) * (1.0 + s.slope * v) + s.slope * ends)
     }
 }
 
@@ -377,11 +383,14 @@ mod tests {
     }
 
     #[test]
-    fn the_phi_table_matches_erfc_to_its_stated_error() {
+    fn the_phi_table_matches_erfc_and_the_density_to_their_stated_error() {
         for i in 0..=4000 {
             let t = -7.0 + 14.0 * f64::from(i) / 4000.0;
-            let err = (f64::from(phi(&PHI_TABLE, t as f32)) - normal_cdf(t)).abs();
+            let [cdf, density] = phi_and_density(&PHI_TABLE, t as f32).map(f64::from);
+            let err = (cdf - normal_cdf(t)).abs();
             assert!(err < 1.5e-6, "Φ({t}) off by {err}");
+            let err = (density - normal_density(t)).abs();
+            assert!(err < 2.5e-6, "φ({t}) off by {err}");
         }
     }
 
