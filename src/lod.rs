@@ -18,7 +18,7 @@
 //! alike fall into the same cells.
 
 use crate::math::Sym2;
-use crate::project::{plane_depth_gradient, Instant, DEPTH_TOLERANCE_SIGMAS};
+use crate::project::{Instant, DEPTH_TOLERANCE_SIGMAS};
 use crate::scene::camera::Camera;
 use crate::scene::Object;
 use crate::surfels::Surfel;
@@ -384,14 +384,11 @@ impl Grid<'_> {
             };
         let (u, v) = (p.dot(frame), p.perp_dot(frame));
         let (along, across) = ((u / along_px).floor(), (v / self.cell).floor());
-        // The plane's depth at the cell's centre: one surface's surfels agree there, whatever
-        // its slope; another surface behind it does not.
-        let centre =
-            frame * ((along + 0.5) * along_px) - frame.perp() * ((across + 0.5) * self.cell);
-        let normal_view = middle.view_vector(surfel.normal);
-        let gradient = plane_depth_gradient(self.camera, p_view, normal_view, depth, self.layer);
-        let at_centre = depth + gradient.dot(DVec2::new(centre.x - p.x, centre.y - p.y));
-        let layer = (at_centre / self.layer).floor();
+        // The surfel's own depth, so that a layer of a cell is one run of a surface along it.
+        // Its tangent plane's depth at the cell's centre, which a sloping plane's surfels share,
+        // put both ends of a long cell on a ball in one layer (their planes pass alike in front
+        // of the centre) and its middle in another: docs/math.md, "Level of detail".
+        let layer = (depth / self.layer).floor();
         if !(along.is_finite() && across.is_finite() && layer.is_finite()) {
             return alone;
         }
