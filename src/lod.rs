@@ -303,7 +303,7 @@ enum CellKey {
         /// Cell along and across the (rotated) grid.
         along: i64,
         across: i64,
-        /// Depth layer of the surfel's plane at the cell's centre.
+        /// Depth layer of the surfel (its own depth).
         layer: i64,
         /// Normal bucket.
         normal: u8,
