@@ -347,19 +347,19 @@ impl Grid<'_> {
     fn key(&self, surfel: &Surfel) -> CellKey {
         let alone = CellKey::Alone;
         let mut screen = Vec::with_capacity(self.instants.len());
-        for instant in self.instants {
-            let p_view = instant.view_point(surfel.position);
-            match self.camera.project(p_view) {
-                Some((p, _)) if p.is_finite() => screen.push(p),
+        let mut depth = f64::NAN;
+        for (i, instant) in self.instants.iter().enumerate() {
+            match self.camera.project(instant.view_point(surfel.position)) {
+                Some((p, d)) if p.is_finite() => {
+                    screen.push(p);
+                    if i == self.middle {
+                        depth = d;
+                    }
+                }
                 _ => return alone,
             }
         }
-        let middle = self.instants[self.middle];
-        let p_view = middle.view_point(surfel.position);
-        let (p, depth) = match self.camera.project(p_view) {
-            Some(v) => v,
-            None => return alone,
-        };
+        let p = screen[self.middle];
         let path: f64 = screen.windows(2).map(|w| w[0].distance(w[1])).sum();
         let (direction, length, frame, along_px) =
             if self.along_fraction.is_some() && path >= 2.0 * self.cell {

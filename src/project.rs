@@ -355,21 +355,32 @@ fn between(a: &ScreenSplat, b: &ScreenSplat, s: f64) -> ScreenSplat {
     }
 }
 
-/// How far a footprint standing for the screen path through `[start, middle, end]` (where a
-/// surfel is at t0, (t0 + t1)/2 and t1) must move off its chord, across it, to lie on the path's
-/// mean position over the part of [t0, t1] and the shutter weight that `moments` describe. For a
-/// path quadratic in time, its departure from the chord is the sagitta (`middle` less the
-/// chord's middle) × 4u(1 − u) at a share u of [t0, t1], whose mean is 4(E[u] − E[u²]): ⅔ of the
-/// sagitta under a box shutter over the whole interval. Only the sagitta's part across the chord
-/// counts: along it, a path's departure is a change of speed (a surfel moving in depth), which
-/// moves light within the streak rather than the streak. docs/math.md, "A bent path's mean".
-fn path_bend([start, middle, end]: [DVec2; 3], [t0, t1]: [f64; 2], moments: &TimeMoments) -> DVec2 {
-    let (duration, chord) = (t1 - t0, end - start);
-    if !(duration > 0.0 && chord.length_squared() > 0.0) {
+/// Where the middle of a sub-segment's screen path through `[start, middle, end]` (where a
+/// surfel is at t0, (t0 + t1)/2 and t1) lies from its chord's middle: the part across the chord
+/// (px), and the part along it in chord lengths. Zero for a chord of no length.
+fn sagitta([start, middle, end]: [DVec2; 3]) -> (DVec2, f64) {
+    let chord = end - start;
+    let length_sq = chord.length_squared();
+    if !(length_sq > 0.0) {
+        return (DVec2::ZERO, 0.0);
+    }
+    let offset = middle - 0.5 * (start + end);
+    let along = offset.dot(chord) / length_sq;
+    (offset - chord * along, along)
+}
+
+/// How far a footprint must move off its chord, across it, to lie on its path's mean position
+/// over the part of [t0, t1] and the shutter weight that `moments` describe, for a path
+/// quadratic in time whose middle lies `across` (the [`sagitta`]'s part across the chord) off
+/// the chord's middle: its departure from the chord is `across` × 4u(1 − u) at a share u of
+/// [t0, t1], whose mean is 4(E[u] − E[u²]): ⅔ of it under a box shutter over the whole interval.
+/// The part along the chord is a change of speed (a surfel moving in depth), which moves light
+/// within the streak rather than the streak. docs/math.md, "A bent path's mean".
+fn path_bend(across: DVec2, [t0, t1]: [f64; 2], moments: &TimeMoments) -> DVec2 {
+    let duration = t1 - t0;
+    if !(duration > 0.0) {
         return DVec2::ZERO;
     }
-    let sagitta = middle - 0.5 * (start + end);
-    let across = sagitta - chord * (sagitta.dot(chord) / chord.length_squared());
     let mean = (moments.mean - t0) / duration;
     let mean_square = moments.variance / (duration * duration) + mean * mean;
     across * (4.0 * (mean - mean_square))
@@ -381,21 +392,6 @@ pub(crate) struct SubSegmentView<'a> {
     pub(crate) start: &'a SurfelView,
     pub(crate) middle: Option<DVec2>,
     pub(crate) end: &'a SurfelView,
-}
-
-/// How much more of its time a surfel on the screen path through `[start, middle, end]` (where it
-/// is at the start, middle and end of a sub-segment) spends at the end of its chord than at the
-/// start, as a share of the mean: for a path quadratic in time whose middle lies c chord lengths
-/// past the chord's middle, its speed along the chord is 1 + 4c(1 − 2u) at a share u of the
-/// sub-segment, so its density along the chord is 1 + 8c·x to first order, x chord lengths from
-/// the middle. docs/math.md, "A streak whose light changes along it".
-fn speed_change([start, middle, end]: [DVec2; 3]) -> f64 {
-    let chord = end - start;
-    let length_sq = chord.length_squared();
-    if !(length_sq > 0.0) {
-        return 0.0;
-    }
-    8.0 * (middle - 0.5 * (start + end)).dot(chord) / length_sq
 }
 
 /// The motion ellipse of one surfel over [t0, t1] of the exposure `shutter`, `seen` there, with
@@ -443,13 +439,15 @@ pub(crate) fn motion_ellipse(
         }
     }
     // A clipped ellipse's ends lie on the chord, so its path bends from the same line.
-    let bend = middle.map_or(DVec2::ZERO, |middle| {
-        path_bend([a.splat.center, middle, b.splat.center], [t0, t1], &moments)
+    let (across, along) = middle.map_or((DVec2::ZERO, 0.0), |middle| {
+        sagitta([a.splat.center, middle, b.splat.center])
     });
-    let speed_change = match middle {
-        Some(middle) if span == [t0, t1] => speed_change([a.splat.center, middle, b.splat.center]),
-        _ => 0.0,
-    };
+    let bend = path_bend(across, [t0, t1], &moments);
+    // A path whose middle lies c chord lengths past the chord's middle moves along the chord at
+    // 1 + 4c(1 − 2u) at a share u of the sub-segment, so it leaves 1 + 8c·x of its light at x
+    // chord lengths from the middle, to first order (docs/math.md, "A streak whose light changes
+    // along it"). A clipped piece's middle is not the sub-segment's: left out there.
+    let speed_change = if span == [t0, t1] { 8.0 * along } else { 0.0 };
     let ([t0, t1], moments) = (span, &moments);
     let (a, b) = (&a_splat, &b_splat);
     // The splat at the sub-segment's mean time.

@@ -4,9 +4,9 @@
 mod common;
 
 use common::*;
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use streak::scene::shutter::ShutterShape;
-use streak::{Method, Pose, Shutter};
+use streak::{Method, Shutter};
 
 #[test]
 fn the_test_splat_stays_below_full_coverage() {
@@ -268,11 +268,10 @@ fn splats_turning_edge_on_carry_the_energy_they_show() {
     // in time, 2.3 % short of the cosine's mean over 60°–90°). A surface made of such splats
     // also loses what its uneven fill of the time bins loses (tests/stiff.rs).
     let camera = camera(96, 64);
-    let turn = |degrees: f64| Pose {
-        rotation: DQuat::from_rotation_y(degrees.to_radians()),
-        ..Pose::IDENTITY
-    };
-    let turning = motion(&[(0.0, turn(60.0)), (1.0, turn(120.0))]);
+    let turning = motion(&[
+        (0.0, pose_about_y(DVec3::ZERO, 60.0)),
+        (1.0, pose_about_y(DVec3::ZERO, 120.0)),
+    ]);
     let splats = (0..5)
         .map(|i| facing_surfel(DVec3::new(0.0, f64::from(i) - 2.0, 0.0), 0.15))
         .collect();
@@ -293,12 +292,10 @@ fn a_splat_turning_as_it_slides_leaves_a_streak_that_fades_along_it() {
     // along it (docs/math.md, "A streak whose light changes along it").
     let camera = camera(128, 64);
     let surfel = facing_surfel(DVec3::ZERO, 1.0 / px_per_unit(&camera));
-    let turning = |x: f64, degrees: f64| Pose {
-        translation: DVec3::new(x, 0.0, 0.0),
-        rotation: DQuat::from_rotation_y(degrees.to_radians()),
-        scale: 1.0,
-    };
-    let sliding = motion(&[(0.0, turning(-2.0, 0.0)), (1.0, turning(2.0, 60.0))]);
+    let sliding = motion(&[
+        (0.0, pose_about_y(DVec3::new(-2.0, 0.0, 0.0), 0.0)),
+        (1.0, pose_about_y(DVec3::new(2.0, 0.0, 0.0), 60.0)),
+    ]);
     let scene = scene(camera, vec![object(vec![surfel], sliding)]);
     let reference = red(&draw(&scene, &Method::Reference { samples: 2048 }));
     let blur = red(&draw(&scene, &Method::Blur { tolerance_px: 64.0 }));

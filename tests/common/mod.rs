@@ -54,6 +54,15 @@ pub fn pose(translation: DVec3, rotation_z_degrees: f64) -> Pose {
     }
 }
 
+/// A pose at `translation` turned `degrees` about the vertical (y) axis.
+pub fn pose_about_y(translation: DVec3, degrees: f64) -> Pose {
+    Pose {
+        translation,
+        rotation: DQuat::from_rotation_y(degrees.to_radians()),
+        scale: 1.0,
+    }
+}
+
 /// A rectangle of white surfels `size` wide and high, parallel to the image plane, centred on
 /// `centre`, about `spacing` apart: an opaque surface. It faces the camera (+z) unless
 /// `facing_away`.
