@@ -2,8 +2,9 @@
 //! out. Still objects take the static path (projected once, no motion ellipses); a moving
 //! object's shutter interval is cut at its keyframes and then into as few linear sub-segments as
 //! keep every probed point's screen path within the method's tolerance of its chord (of uniform
-//! motion along it, for exact streaks and triangles) and every surfel sub-segment shorter than
-//! [`SEGMENT_LENGTH_PER_TOLERANCE`] tolerances; a scene with no light
+//! motion along it, for exact streaks and triangles) and every surfel sub-segment whose colour
+//! may change along it shorter than [`SEGMENT_LENGTH_PER_TOLERANCE`] tolerances; a scene with no
+//! light
 //! runs no shading. A path crossing the near plane is cut into [`MAX_SEGMENTS_PER_INTERVAL`]
 //! pieces, so that the renderers drop only the piece around the crossing. Derivation:
 //! docs/math.md, "Sub-segment planning".
@@ -12,13 +13,13 @@ use crate::cache::Recent;
 use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
-use crate::project::Culled;
+use crate::project::{Culled, DEPTH_TOLERANCE_SIGMAS};
 use crate::render::triangles::shadow::{light_camera, MAX_SHADOWED_LIGHTS};
 use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
 use crate::scene::camera::Camera;
 use crate::scene::motion::Motion;
 use crate::scene::shutter::Shutter;
-use crate::scene::{Object, Scene, TriangleMesh};
+use crate::scene::{Lighting, Object, Scene, TriangleMesh};
 use crate::simplify::speed::{self, DetailRule, ScreenMotion};
 use crate::surfels::{Colouring, Mesh, Surfel};
 use glam::{DVec2, DVec3};
@@ -27,10 +28,12 @@ use std::sync::Arc;
 /// A surfel's sub-segment may be at most this many tolerances long on screen. One motion ellipse
 /// stands for a whole segment with a single Gaussian; a long one differs from the true streak (a
 /// box along the motion convolved with the splat) at its ends, so shorter segments converge to
-/// it. An exact streak has no such error, but it carries the splat's covariance and depth at the
-/// chord's middle over all of it, and its light only linear along it: without the cap, the
-/// falling sphere's one 109 px streak had 1.26× the RMSE of four (0.00067 against 0.00053 at
-/// 192 × 256; 2.9× before streaks carried their change of light), and at 64 tolerances 1.04×.
+/// it. An exact streak has no such error, but it carries the splat's colour and orientation at
+/// the chord's middle over all of it, and its depth tolerance widened by its change of depth. Where
+/// none of them changes (the object does not turn, no spot light shades it by where it is, and
+/// no probe's depth changes by more than its own tolerance) the cap is lifted for streaks: there
+/// it cost time without making them more accurate. Docs/math.md, "Sub-segment planning", has
+/// the measurements.
 pub const SEGMENT_LENGTH_PER_TOLERANCE: f64 = 32.0;
 
 /// Largest departure of a probe's screen weight from the straight line between a sub-segment's
@@ -80,6 +83,9 @@ pub enum ObjectMotion {
         longest_segment_px: f64,
         /// What stopped the subdivision before the tolerance held, if anything.
         capped: Option<SegmentCap>,
+        /// Whether its sub-segments are exact streaks free of [`SEGMENT_LENGTH_PER_TOLERANCE`]
+        /// in every keyframe interval, since nothing they hold changes along them.
+        uncapped_streaks: bool,
     },
 }
 
@@ -226,7 +232,7 @@ impl<'a> Plan<'a> {
                         [open, close],
                         tolerance_px,
                         max_segments,
-                        Drawn::by(method, &scene.shutter, object),
+                        Drawn::by(method, &scene.shutter, &scene.lighting, object),
                     )
                 } else {
                     ObjectMotion::Still
@@ -444,6 +450,7 @@ impl<'a> Plan<'a> {
                     deviation_px,
                     longest_segment_px,
                     capped,
+                    uncapped_streaks,
                 } => {
                     line(format!(
                         "  {:?}: {} surfels, moving: screen path up to {path_px:.1} px, {} linear sub-segment{} (chord deviation ≤ {deviation_px:.2} px, longest {longest_segment_px:.1} px)",
@@ -455,6 +462,11 @@ impl<'a> Plan<'a> {
                     line(format!("    {}", o.lod.outcome.explain()));
                     for mesh in self.mesh_lines(index) {
                         line(format!("    {mesh}"));
+                    }
+                    if *uncapped_streaks {
+                        line(format!(
+                            "    streaks as long as the path allows (otherwise at most {SEGMENT_LENGTH_PER_TOLERANCE} tolerances): it does not turn, no spot light shades it, and its depth changes by less than its surfels' depth tolerance"
+                        ));
                     }
                     match capped {
                         Some(SegmentCap::PerInterval) => line(format!(
@@ -493,18 +505,20 @@ enum Drawn {
     /// As triangles: each corner moves uniformly along its camera-space chord.
     Triangles,
     /// As exact streaks of surfels ([`crate::render::draws_exact_streaks`]): each splat slides
-    /// uniformly along its screen chord.
-    Streaks,
+    /// uniformly along its screen chord; `spot_lit` when a spot light shades it, by where it is.
+    Streaks { spot_lit: bool },
     /// As motion ellipses (or sub-frames): one Gaussian per sub-segment about the path's chord.
     Ellipses,
 }
 
 impl Drawn {
-    fn by(method: &Method, shutter: &Shutter, object: &Object) -> Drawn {
+    fn by(method: &Method, shutter: &Shutter, lighting: &Lighting, object: &Object) -> Drawn {
         if draws_triangles(method, object) {
             Drawn::Triangles
         } else if crate::render::draws_exact_streaks(method, shutter) {
-            Drawn::Streaks
+            Drawn::Streaks {
+                spot_lit: !lighting.spots.is_empty(),
+            }
         } else {
             Drawn::Ellipses
         }
@@ -514,7 +528,7 @@ impl Drawn {
     fn error(self, fit: &Fit) -> f64 {
         match self {
             Drawn::Triangles => fit.timed,
-            Drawn::Streaks => fit.uniform,
+            Drawn::Streaks { .. } => fit.uniform,
             Drawn::Ellipses => fit.deviation,
         }
     }
@@ -625,6 +639,9 @@ struct ProbeView {
     facing_weight: f64,
     /// Camera-space position.
     view: DVec3,
+    /// The surfel's own depth tolerance, its largest standard deviation times
+    /// [`DEPTH_TOLERANCE_SIGMAS`], in camera-space units.
+    depth_tolerance: f64,
 }
 
 /// Every probe at time t, each `None` when not in front of the camera. The pose is evaluated
@@ -644,8 +661,13 @@ fn probes_at(camera: &Camera, object: &Object, probes: &[usize], t: f64) -> Vec<
                 .transform_vector3(pose.transform_vector3(surfel.normal))
                 .normalize_or_zero();
             let depth_cubed = depth.powi(3);
+            let sigma = pose
+                .transform_vector3(surfel.axis_u)
+                .length()
+                .max(pose.transform_vector3(surfel.axis_v).length());
             Some(ProbeView {
                 view: p_view,
+                depth_tolerance: DEPTH_TOLERANCE_SIGMAS * sigma,
                 screen,
                 weight: n_view.dot(-p_view) / depth_cubed,
                 facing_weight: p_view.length() / depth_cubed,
@@ -689,13 +711,15 @@ struct Fit {
     /// The same on screen: from where uniform motion along its screen chord puts it (an exact
     /// streak's path).
     uniform: f64,
+    /// Largest change of a probe's depth over a piece, in its own depth tolerances.
+    depth_change: f64,
 }
 
 /// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal
 /// pieces of [t0, t1].
 fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
-    let (mut deviation, mut longest, mut weight, mut timed, mut uniform) =
-        (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let (mut deviation, mut longest, mut weight, mut timed, mut uniform, mut depth_change) =
+        (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let at = |t: f64| probes_at(camera, object, probes, t);
     // Each piece starts where the one before ends.
     let mut starts = at(t0);
@@ -714,6 +738,8 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
                 continue;
             };
             longest = longest.max(pa.screen.distance(pb.screen));
+            depth_change = depth_change
+                .max((pb.view.z - pa.view.z).abs() / pa.depth_tolerance.min(pb.depth_tolerance));
             for (s, views) in (1..DEVIATION_SAMPLES).zip(&inside) {
                 let share = s as f64 / DEVIATION_SAMPLES as f64;
                 let Some(p) = views[probe] else {
@@ -741,6 +767,7 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
         weight,
         timed,
         uniform,
+        depth_change,
     }
 }
 
@@ -751,7 +778,7 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
 /// same time, and neither a chord's length nor a splat's weight bends anything; an exact streak
 /// slides uniformly along its screen chord, for any length; an ellipse stands for a path within
 /// the tolerance of its chord. Surfels' sub-segments are at most [`SEGMENT_LENGTH_PER_TOLERANCE`]
-/// long.
+/// long, but streaks whose colour and orientation cannot change along them.
 fn plan_motion(
     camera: &Camera,
     object: &Object,
@@ -768,18 +795,26 @@ fn plan_motion(
 
     let (mut segments, mut deviation_px, mut longest_segment_px, mut capped) =
         (Vec::new(), 0.0f64, 0.0f64, None);
+    let mut uncapped_streaks = matches!(drawn, Drawn::Streaks { .. });
     for pair in breaks.windows(2) {
         if segments.len() > max_segments {
             break;
         }
         let (t0, t1) = (pair[0], pair[1]);
+        // A streak holds its colour, orientation and widened depth tolerance over its chord: free
+        // of the length cap where none of them changes.
+        let turns = object.motion.turns_within(t0, t1);
+        let uncapped = |fit: &Fit| {
+            drawn == Drawn::Streaks { spot_lit: false } && !turns && fit.depth_change <= 1.0
+        };
         let mut k = 1;
         let fit = loop {
             let mut fit = measure(camera, object, &probes, t0, t1, k);
             fit.deviation = drawn.error(&fit);
             let (max_length, max_weight) = match drawn {
                 Drawn::Triangles => (f64::INFINITY, f64::INFINITY),
-                Drawn::Streaks | Drawn::Ellipses => (
+                Drawn::Streaks { .. } if uncapped(&fit) => (f64::INFINITY, MAX_WEIGHT_DEVIATION),
+                Drawn::Streaks { .. } | Drawn::Ellipses => (
                     SEGMENT_LENGTH_PER_TOLERANCE * tolerance_px,
                     MAX_WEIGHT_DEVIATION,
                 ),
@@ -808,6 +843,7 @@ fn plan_motion(
             }
             .min(MAX_SEGMENTS_PER_INTERVAL);
         };
+        uncapped_streaks &= uncapped(&fit);
         deviation_px = deviation_px.max(fit.deviation);
         longest_segment_px = longest_segment_px.max(fit.longest);
         segments.extend(pieces(t0, t1, k));
@@ -839,6 +875,7 @@ fn plan_motion(
         deviation_px,
         longest_segment_px,
         capped,
+        uncapped_streaks,
     }
 }
 

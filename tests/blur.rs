@@ -83,6 +83,40 @@ fn blur_matches_the_reference_when_segments_are_short() {
 }
 
 #[test]
+fn a_streak_is_as_long_as_a_straight_path_unless_its_colour_may_change_along_it() {
+    // 48 px in a straight line: the tolerance (1 px) holds for one chord of any length, and an
+    // exact streak of it is the closed form.
+    let (scene, exact) = translating_scene();
+    let segments = |scene: &streak::Scene| {
+        let plan = streak::Plan::new(scene, &Method::BLUR).unwrap();
+        match &plan.objects[0].motion {
+            streak::plan::ObjectMotion::Moving { segments, .. } => segments.len(),
+            streak::plan::ObjectMotion::Still => panic!("the splat moves"),
+        }
+    };
+    assert_eq!(segments(&scene), 1);
+    // The render truncates at 3σ and renormalizes: 2 % in L1, as for one ellipse.
+    let error = relative_l1(&red(&draw(&scene, &Method::BLUR)), &exact);
+    assert!(error < 0.03, "one streak vs the closed form: {error}");
+    // A streak holds its colour and orientation at the middle: turning in place (about the view
+    // axis, so the path stays straight) or lit by a spot, the splat may not change them over
+    // more than 32 px (plan::SEGMENT_LENGTH_PER_TOLERANCE).
+    let mut turning = scene.clone();
+    turning.objects[0].motion = motion(&[
+        (0.0, pose(DVec3::new(-2.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(2.0, 0.0, 0.0), 30.0)),
+    ]);
+    assert_eq!(segments(&turning), 2);
+    let mut spot_lit = scene.clone();
+    spot_lit.lighting.spots =
+        vec![
+            streak::scene::Spot::new(DVec3::new(0.0, 0.0, 10.0), DVec3::ZERO, 40.0, 1.0, false)
+                .unwrap(),
+        ];
+    assert_eq!(segments(&spot_lit), 2);
+}
+
+#[test]
 fn a_blurred_splat_carries_the_energy_of_the_static_one() {
     let (scene, _) = translating_scene();
     let total = |image: Vec<f64>| image.iter().sum::<f64>();

@@ -46,6 +46,11 @@ impl Pose {
     }
 }
 
+/// Smallest change of orientation, radians, that [`Motion::turns_within`] counts: a slerp
+/// between equal keyframe rotations may drift by rounding, whose angle `acos` magnifies to about
+/// 10⁻⁸.
+pub const TURN_EPSILON: f64 = 1e-6;
+
 /// A pose at a normalized frame time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Keyframe {
@@ -162,12 +167,27 @@ impl Motion {
     #[must_use]
     pub fn moves_within(&self, t0: f64, t1: f64) -> bool {
         let reference = self.pose_at(t0);
+        self.any_pose_within(t0, t1, |pose| pose != reference)
+    }
+
+    /// Whether the orientation changes anywhere inside [t0, t1] by more than [`TURN_EPSILON`].
+    #[must_use]
+    pub fn turns_within(&self, t0: f64, t1: f64) -> bool {
+        let reference = self.pose_at(t0).rotation;
+        self.any_pose_within(t0, t1, |pose| {
+            pose.rotation.angle_between(reference) > TURN_EPSILON
+        })
+    }
+
+    /// Whether `differs` holds at a keyframe inside (t0, t1] or at t1. Poses between keyframes
+    /// interpolate those at their ends, so a change anywhere in [t0, t1] shows at one of these.
+    fn any_pose_within(&self, t0: f64, t1: f64, differs: impl Fn(Pose) -> bool) -> bool {
         self.keyframes
             .iter()
             .map(|k| k.t)
             .filter(|&t| t > t0 && t <= t1)
             .chain(std::iter::once(t1))
-            .any(|t| self.pose_at(t) != reference)
+            .any(|t| differs(self.pose_at(t)))
     }
 
     /// Keyframe times strictly inside (t0, t1): the points where a path may bend sharply.
@@ -211,6 +231,31 @@ mod tests {
             assert!((angle - 90.0 * t).abs() < 1e-9, "t={t}: {angle}");
             assert!((p.length() - 1.0).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_motion_turns_only_where_its_keyframes_differ_in_rotation() {
+        let held = DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
+        let key = |t: f64, x: f64, rotation: DQuat| Keyframe {
+            t,
+            pose: Pose {
+                translation: DVec3::new(x, 0.0, 0.0),
+                rotation,
+                scale: 1.0,
+            },
+        };
+        let sliding = Motion::new(vec![key(0.0, 0.0, held), key(1.0, 3.0, held)]).unwrap();
+        // Between equal rotations the slerp only rounds: no turn, however the window falls.
+        assert!(sliding.moves_within(0.3, 0.7) && !sliding.turns_within(0.3, 0.7));
+        // Turning away and back: the keyframe between shows the turn.
+        let back = Motion::new(vec![
+            key(0.0, 0.0, held),
+            key(0.5, 1.0, DQuat::IDENTITY),
+            key(1.0, 2.0, held),
+        ])
+        .unwrap();
+        assert!(back.turns_within(0.0, 1.0) && !back.turns_within(0.0, 0.0));
+        assert!(spin(0.001).turns_within(0.2, 0.4));
     }
 
     #[test]
