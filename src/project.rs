@@ -170,6 +170,7 @@ impl Located {
                 profile: Profile::Gaussian,
                 sweep: DVec2::ZERO,
                 sweep_change: 0.0,
+                colour_change: 0.0,
                 additive: false,
             },
             facing,
@@ -517,11 +518,20 @@ pub(crate) fn motion_ellipse(
     } else {
         0.0
     };
+    // Shading scales a surfel's albedo by its irradiance (white lights), so its colour changes
+    // by one share in every channel: taken over the channels' sum.
+    let mean_sum: f32 = mean.colour.iter().sum();
+    let colour_change = if mean_sum > 0.0 {
+        f64::from((b.colour.iter().sum::<f32>() - a.colour.iter().sum::<f32>()) / mean_sum)
+    } else {
+        0.0
+    };
     Ok(ScreenSplat {
         center: a.center + chord * s + bend,
         covariance,
         sweep,
         sweep_change: weight_change + speed_change,
+        colour_change,
         weight: mean.weight * moments.mass,
         colour: mean.colour,
         depth: mean.depth,

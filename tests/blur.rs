@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use streak::scene::shutter::ShutterShape;
-use streak::{Method, Shutter};
+use streak::{Light, Lighting, Method, Shutter};
 
 #[test]
 fn the_test_splat_stays_below_full_coverage() {
@@ -321,11 +321,12 @@ fn splats_turning_edge_on_carry_the_energy_they_show() {
 
 /// Relative L1 of `blur` (τ = 64 px, so only the plan's other rules cut the path) against the
 /// reference of 2048 frames, for a 1 px splat moving through the keyframes `keys` in a 128 × 64
-/// image.
-fn one_splat_against_the_reference(keys: &[(f64, streak::Pose)]) -> f64 {
+/// image under `lighting`.
+fn one_splat_against_the_reference(keys: &[(f64, streak::Pose)], lighting: Lighting) -> f64 {
     let camera = camera(128, 64);
     let surfel = facing_surfel(DVec3::ZERO, 1.0 / px_per_unit(&camera));
-    let scene = scene(camera, vec![object(vec![surfel], motion(keys))]);
+    let mut scene = scene(camera, vec![object(vec![surfel], motion(keys))]);
+    scene.lighting = lighting;
     let reference = red(&draw(&scene, &Method::Reference { samples: 2048 }));
     let blur = red(&draw(&scene, &Method::Blur { tolerance_px: 64.0 }));
     relative_l1(&blur, &reference)
@@ -336,10 +337,13 @@ fn a_splat_turning_as_it_slides_leaves_a_streak_that_fades_along_it() {
     // Sliding 4 units while turning from facing the camera to 60° from it, its screen area
     // falls to half at an even speed; each sub-segment's streak carries the change of light
     // along it (docs/math.md, "A streak whose light changes along it").
-    let error = one_splat_against_the_reference(&[
-        (0.0, pose_about_y(DVec3::new(-2.0, 0.0, 0.0), 0.0)),
-        (1.0, pose_about_y(DVec3::new(2.0, 0.0, 0.0), 60.0)),
-    ]);
+    let error = one_splat_against_the_reference(
+        &[
+            (0.0, pose_about_y(DVec3::new(-2.0, 0.0, 0.0), 0.0)),
+            (1.0, pose_about_y(DVec3::new(2.0, 0.0, 0.0), 60.0)),
+        ],
+        Lighting::default(),
+    );
     // Five sub-segments (the weight's 1 % rule): 1.6 % in L1, the splat's foreshortening along
     // the chord and the cut; with even light along each streak it was 3.3 %.
     assert!(error < 0.02, "blur vs reference: {error}");
@@ -350,11 +354,32 @@ fn a_splat_nearing_the_camera_leaves_a_streak_of_even_light() {
     // From 12 to 8 units away while crossing 4: its screen area grows as 1/z², and so does its
     // screen speed (f (ẋz − xż)/z², the numerator constant for linear motion), so the light it
     // leaves per pixel of its path is even; the two changes cancel in each streak.
-    let error = one_splat_against_the_reference(&[
-        (0.0, pose(DVec3::new(-2.0, 0.0, -2.0), 0.0)),
-        (1.0, pose(DVec3::new(2.0, 0.0, 2.0), 0.0)),
-    ]);
+    let error = one_splat_against_the_reference(
+        &[
+            (0.0, pose(DVec3::new(-2.0, 0.0, -2.0), 0.0)),
+            (1.0, pose(DVec3::new(2.0, 0.0, 2.0), 0.0)),
+        ],
+        Lighting::default(),
+    );
     // 1.6 % in L1 (the splat's growth along each streak and the cut); with the speed's change
     // counted the wrong way round, 6.7 %.
     assert!(error < 0.02, "blur vs reference: {error}");
+}
+
+#[test]
+fn a_splat_turning_towards_a_light_leaves_a_streak_that_brightens_along_it() {
+    // Sliding 4 units while turning from −30° to 30° about the vertical, under a light 45° to
+    // the side: its shading n·l goes from cos 75° to cos 15°, 3.7 times brighter, while its
+    // screen area changes by at most 13 %. Each streak's colour changes linearly along it
+    // (docs/math.md, "A streak whose colour changes along it").
+    let light = Light::new(DVec3::new(1.0, 0.0, 1.0), 1.0).unwrap();
+    let error = one_splat_against_the_reference(
+        &[
+            (0.0, pose_about_y(DVec3::new(-2.0, 0.0, 0.0), -30.0)),
+            (1.0, pose_about_y(DVec3::new(2.0, 0.0, 0.0), 30.0)),
+        ],
+        Lighting::new(0.0, vec![light]).unwrap(),
+    );
+    // 1.7 % in L1; with each streak's colour even (its ends' mean), 4.1 %.
+    assert!(error < 0.025, "blur vs reference: {error}");
 }

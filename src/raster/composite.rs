@@ -178,19 +178,33 @@ impl<const B: usize> PixelState<B> {
         ];
         self.follow(depth, f.depth_tolerance, &span);
         if f.additive {
-            for c in 0..3 {
-                self.group_emission[c] += w * f.colour[c];
+            for (sum, colour) in self.group_emission.iter_mut().zip(f.colour) {
+                *sum += w * colour;
             }
             return;
         }
-        for c in 0..3 {
-            self.group_colour[c] += w * f.colour[c];
+        for (sum, colour) in self.group_colour.iter_mut().zip(f.colour) {
+            *sum += w * colour;
         }
         self.group_weight += w;
         if B == 1 {
             self.group_coverage[0] += w;
         } else {
             self.deposit(w, &span, bins);
+        }
+    }
+
+    /// Add `change` to the colour of the footprint just added (its colour's change along a
+    /// streak, weighted by its light there), as emission when it is `additive`.
+    #[inline(always)]
+    pub(super) fn add_colour_change(&mut self, additive: bool, change: [f32; 3]) {
+        let sums = if additive {
+            &mut self.group_emission
+        } else {
+            &mut self.group_colour
+        };
+        for (sum, change) in sums.iter_mut().zip(change) {
+            *sum += change;
         }
     }
 
@@ -378,6 +392,7 @@ mod tests {
             profile: crate::raster::Profile::Gaussian,
             sweep: DVec2::ZERO,
             sweep_change: 0.0,
+            colour_change: 0.0,
             additive: false,
         };
         (splat.footprint(1, 1).unwrap(), value)

@@ -185,6 +185,12 @@ pub struct ScreenSplat {
     /// shrinks, or that slows down or speeds up, leaves such a streak; only exact streaks use it
     /// (docs/math.md, "A streak whose light changes along it").
     pub sweep_change: f64,
+    /// How much its colour changes along `sweep` from start to end, as a share of `colour` (its
+    /// value at the chord's middle): the colour is `colour` × (1 + colour_change · x) at x chord
+    /// lengths from the middle. A surfel turning towards or away from a light leaves such a
+    /// streak (its shading scales its albedo); only exact streaks use it (docs/math.md, "A
+    /// streak whose colour changes along it").
+    pub colour_change: f64,
     /// Emits light instead of covering: it adds weight × colour, dimmed by what lies in front of
     /// it, and hides nothing (additive motion trails, Guan & Mueller §4).
     pub additive: bool,
@@ -195,7 +201,12 @@ impl ScreenSplat {
     /// include the pre-filter.
     pub fn footprint(&self, width: u32, height: u32) -> Result<Footprint, Rejection> {
         let streak = if self.sweep != DVec2::ZERO && self.profile == Profile::Gaussian {
-            StreakGeometry::of(&self.covariance, self.sweep, self.sweep_change)
+            StreakGeometry::of(
+                &self.covariance,
+                self.sweep,
+                self.sweep_change,
+                self.colour_change,
+            )
         } else {
             None
         };
@@ -273,18 +284,34 @@ impl Footprint {
     /// is the image a [`Profile::Texture`] footprint maps.
     #[cfg(test)]
     pub fn weight_at(&self, x: u32, y: u32, texture: Option<&Texture>) -> f32 {
+        self.sample_at(x, y, texture).0
+    }
+
+    /// The footprint's weight times its colour at the centre of pixel (x, y), as the compositor
+    /// adds it.
+    #[cfg(test)]
+    pub fn light_at(&self, x: u32, y: u32) -> [f32; 3] {
+        let (weight, change) = self.sample_at(x, y, None);
+        [0, 1, 2].map(|c| weight * self.colour[c] + change[c])
+    }
+
+    /// The footprint's weight at the centre of pixel (x, y), and what its colour's change along
+    /// a streak adds to its light there.
+    #[cfg(test)]
+    fn sample_at(&self, x: u32, y: u32, texture: Option<&Texture>) -> (f32, [f32; 3]) {
         let [dx, dy] = self.offset(x, y);
-        let value = match self.streak {
+        let ((value, moment), slope) = match self.streak {
             Some(streak) => {
                 let shape = StreakRows::new(streak, self.center, self.bounds);
-                shape.value(shape.row(dy), dx)
+                (shape.value(shape.row(dy), dx), Some(streak.colour_slope))
             }
             None => {
                 let shape = Ellipse::new(self, texture);
-                shape.value(shape.row(dy), dx)
+                (shape.value(shape.row(dy), dx), None)
             }
         };
-        self.amplitude * value
+        let shift = self.amplitude * moment * slope.unwrap_or(0.0);
+        (self.amplitude * value, self.colour.map(|c| shift * c))
     }
 
     /// The time interval during which the footprint covers pixel (x, y).
@@ -426,9 +453,11 @@ trait Shape {
     fn span(&self, y: u32) -> (u32, u32);
     /// The row `dy` below the centre (pixel centres' offset).
     fn row(&self, dy: f32) -> Self::Row;
-    /// The value before the amplitude at offset `dx` from the centre in `row`: zero beyond the
-    /// cut-off.
-    fn value(&self, row: Self::Row, dx: f32) -> f32;
+    /// The value before the amplitude at offset `dx` from the centre in `row` (zero beyond the
+    /// cut-off), and its first moment along the shape: the value times where along a streak's
+    /// chord its light there comes from on average, in standard deviations (zero for an ellipse
+    /// and for a streak whose colour is even).
+    fn value(&self, row: Self::Row, dx: f32) -> (f32, f32);
 }
 
 /// An elliptical footprint: its rows, conic and profile.
@@ -465,12 +494,12 @@ impl Shape for Ellipse<'_> {
     }
 
     #[inline]
-    fn value(&self, [dy, row_q, row_slope]: [f32; 3], dx: f32) -> f32 {
+    fn value(&self, [dy, row_q, row_slope]: [f32; 3], dx: f32) -> (f32, f32) {
         let q = dx * (self.conic[0] * dx + row_slope) + row_q;
         if q > CUTOFF_Q {
-            0.0
+            (0.0, 0.0)
         } else {
-            self.sampler.value([dx, dy], q)
+            (self.sampler.value([dx, dy], q), 0.0)
         }
     }
 }
@@ -781,22 +810,33 @@ fn render_tile<'s, const B: usize>(
         match f.streak {
             Some(streak) => {
                 let shape = StreakRows::new(streak, f.center, f.bounds);
-                composite_footprint(f, &shape, pixels, tile, target, bins);
+                composite_footprint(
+                    f,
+                    &shape,
+                    Some(streak.colour_slope),
+                    pixels,
+                    tile,
+                    target,
+                    bins,
+                );
             }
             None => {
                 let shape = Ellipse::new(f, target.texture);
-                composite_footprint(f, &shape, pixels, tile, target, bins);
+                composite_footprint(f, &shape, None, pixels, tile, target, bins);
             }
         }
     }
     pixels
 }
 
-/// Composite footprint `f`, drawn as `shape`, into the open pixel states of `tile`.
+/// Composite footprint `f`, drawn as `shape` whose colour changes by `colour_slope` of itself
+/// per unit along it (see [`Shape::value`]; `None` where it cannot), into the open pixel states
+/// of `tile`.
 #[inline]
 fn composite_footprint<const B: usize>(
     f: &Footprint,
     shape: &impl Shape,
+    colour_slope: Option<f32>,
     pixels: &mut [PixelState<B>],
     [x0, y0, x1, y1]: [u32; 4],
     target: &Target,
@@ -820,9 +860,14 @@ fn composite_footprint<const B: usize>(
                 }
             }
             let dx = x as f32 + 0.5 - f.center[0];
-            let weight = f.amplitude * shape.value(row_shape, dx);
+            let (value, moment) = shape.value(row_shape, dx);
+            let weight = f.amplitude * value;
             if weight > 0.0 {
                 state.add(f, weight, [x, y], bins);
+                if let Some(slope) = colour_slope {
+                    let shift = f.amplitude * moment * slope;
+                    state.add_colour_change(f.additive, f.colour.map(|c| shift * c));
+                }
             }
         }
     }
@@ -851,6 +896,7 @@ mod tests {
             profile: Profile::Gaussian,
             sweep: DVec2::ZERO,
             sweep_change: 0.0,
+            colour_change: 0.0,
             additive: false,
         }
     }

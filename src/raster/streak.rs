@@ -97,6 +97,9 @@ pub struct Streak {
     /// The slide's density is 1 + slope · s at s standard deviations from the chord's middle
     /// (|slope| ≤ 1/(k/2), so it is nowhere negative).
     pub slope: f32,
+    /// The colour is the footprint's × (1 + colour_slope · s) at s standard deviations from the
+    /// chord's middle.
+    pub colour_slope: f32,
 }
 
 /// A streak with what its footprint needs besides.
@@ -112,9 +115,15 @@ pub(super) struct StreakGeometry {
 impl StreakGeometry {
     /// The streak of a splat of `covariance` (px², pre-filter included) sliding along `chord`
     /// (px), its light along the chord changing by `change` of its mean from end to end (see
-    /// [`super::ScreenSplat::sweep_change`]; clamped to ±2, where one end has none); `None` when
-    /// the chord is shorter than [`MIN_STREAK_SIGMAS`] or the covariance is singular.
-    pub(super) fn of(covariance: &Sym2, chord: DVec2, change: f64) -> Option<StreakGeometry> {
+    /// [`super::ScreenSplat::sweep_change`]; clamped to ±2, where one end has none) and its
+    /// colour by `colour_change`; `None` when the chord is shorter than [`MIN_STREAK_SIGMAS`] or
+    /// the covariance is singular.
+    pub(super) fn of(
+        covariance: &Sym2,
+        chord: DVec2,
+        change: f64,
+        colour_change: f64,
+    ) -> Option<StreakGeometry> {
         let conic = covariance.inverse()?;
         let length = conic.quadratic(chord).sqrt();
         let normal = chord.perp();
@@ -139,6 +148,7 @@ impl StreakGeometry {
                 along: along.as_vec2().to_array(),
                 half_length: (0.5 * length) as f32,
                 slope: (change.clamp(-2.0, 2.0) / length) as f32,
+                colour_slope: (colour_change / length) as f32,
             },
             integral: (2.0 * std::f64::consts::PI).sqrt() * kept_across * kept_along,
             extent,
@@ -219,24 +229,38 @@ impl Shape for StreakRows {
     }
 
     #[inline]
-    fn value(&self, [p_row, v_row]: [f32; 2], dx: f32) -> f32 {
+    fn value(&self, [p_row, v_row]: [f32; 2], dx: f32) -> (f32, f32) {
         let s = &self.streak;
         let (p, v) = (s.across[0] * dx + p_row, s.along[0] * dx + v_row);
         let (q, h) = (p * p, s.half_length);
         if q > CUTOFF_Q || v.abs() > h + CUTOFF_SIGMAS as f32 {
-            return 0.0;
+            return (0.0, 0.0);
         }
-        if s.slope == 0.0 {
-            return exp_half(self.gaussian, q) * (phi(self.phi, h - v) - phi(self.phi, -h - v));
+        let even_colour = s.colour_slope == 0.0;
+        if s.slope == 0.0 && even_colour {
+            let value = phi(self.phi, h - v) - phi(self.phi, -h - v);
+            return (exp_half(self.gaussian, q) * value, 0.0);
         }
-        // ∫ (1 + slope·s) φ(v − s) ds over |s| ≤ h (docs/math.md, "A streak whose light changes
-        // along it"), with φ(v − h) = φ(h − v) and φ(v + h) = φ(−h − v) from the same lookups.
+        // The moments Mₙ = ∫ sⁿ φ(v − s) ds over |s| ≤ h, n = 0, 1, 2 (docs/math.md, "A streak
+        // whose colour changes along it"), with φ(v − h) = φ(h − v) and φ(v + h) = φ(−h − v)
+        // from the same lookups. The light is ∫ (1 + slope·s) φ(v − s) ds = M₀ + slope·M₁, its
+        // first moment M₁ + slope·M₂.
         let ([upper, density_upper], [lower, density_lower]) = (
             phi_and_density(self.phi, h - v),
             phi_and_density(self.phi, -h - v),
         );
+        let m0 = upper - lower;
         let ends = density_lower - density_upper;
-        exp_half(self.gaussian, q) * ((upper - lower) * (1.0 + s.slope * v) + s.slope * ends)
+        let m1 = m0 * v + ends;
+        let across = exp_half(self.gaussian, q);
+        let value = across * (m0 + s.slope * m1);
+        if even_colour {
+            return (value, 0.0);
+        }
+        // ∫ (u + v)² φ(u) du over [−h − v, h − v].
+        let m2 = m0 * (v * v + 1.0) + 2.0 * v * ends
+            - ((h - v) * density_upper + (h + v) * density_lower);
+        (value, across * (m1 + s.slope * m2))
     }
 }
 
@@ -253,11 +277,23 @@ mod tests {
 
     /// [`streak`] with its light changing by `change` of its mean along the chord.
     fn sloped_streak(covariance: Sym2, sweep: DVec2, change: f64, weight: f64) -> Footprint {
+        coloured_streak(covariance, sweep, change, 0.0, weight)
+    }
+
+    /// [`sloped_streak`] coloured (1, ½, ¼) at its middle, its colour changing by
+    /// `colour_change` of itself from start to end.
+    fn coloured_streak(
+        covariance: Sym2,
+        sweep: DVec2,
+        change: f64,
+        colour_change: f64,
+        weight: f64,
+    ) -> Footprint {
         ScreenSplat {
             center: DVec2::new(40.3, 31.6),
             covariance,
             weight,
-            colour: [1.0; 3],
+            colour: COLOUR,
             depth: 1.0,
             depth_gradient: DVec2::ZERO,
             depth_tolerance: 0.01,
@@ -265,11 +301,14 @@ mod tests {
             profile: Profile::Gaussian,
             sweep,
             sweep_change: change,
+            colour_change,
             additive: false,
         }
         .footprint(96, 64)
         .unwrap()
     }
+
+    const COLOUR: [f32; 3] = [1.0, 0.5, 0.25];
 
     fn pixels() -> impl Iterator<Item = (u32, u32)> {
         (0..64).flat_map(|y| (0..96).map(move |x| (x, y)))
@@ -315,6 +354,47 @@ mod tests {
                     checked += 1;
                 } else {
                     assert!(exact < 0.012 * norm, "({x}, {y}) left out at {exact}");
+                }
+            }
+            assert!(checked > 200, "{checked}");
+        }
+    }
+
+    #[test]
+    fn a_streak_whose_colour_changes_is_the_coloured_splat_integrated_along_its_chord() {
+        // As above, the light weighted by a colour scaled linearly along the chord (its shading
+        // changing), with the light even, growing and fading: the moments' closed forms against
+        // the midpoint rule, channel by channel.
+        let (covariance, sweep) = (TILTED, DVec2::new(31.0, -12.0));
+        let conic = covariance.inverse().unwrap();
+        let norm = 5.0 / (std::f64::consts::TAU * covariance.det().sqrt());
+        let colour_change = 0.8;
+        for change in [0.0, 1.333, -2.0] {
+            let f = coloured_streak(covariance, sweep, change, colour_change, 5.0);
+            let mut checked = 0;
+            for (x, y) in pixels() {
+                let d = DVec2::new(f64::from(x) + 0.5 - 40.3, f64::from(y) + 0.5 - 31.6);
+                let steps = 4000;
+                let mut exact = [0.0f64; 3];
+                for i in 0..steps {
+                    let u = (f64::from(i) + 0.5) / f64::from(steps) - 0.5;
+                    let light = (1.0 + change * u) * (-0.5 * conic.quadratic(d - u * sweep)).exp();
+                    for c in 0..3 {
+                        exact[c] += light * f64::from(COLOUR[c]) * (1.0 + colour_change * u);
+                    }
+                }
+                let exact = exact.map(|e| e * norm / f64::from(steps));
+                let drawn = f.light_at(x, y);
+                if f.weight_at(x, y, None) > 0.0 {
+                    for c in 0..3 {
+                        let drawn = f64::from(drawn[c]);
+                        assert!(
+                            (drawn - exact[c]).abs() < 0.004 * exact[c].abs() + 3e-5 * norm,
+                            "change {change}, ({x}, {y}), channel {c}: {drawn} vs {}",
+                            exact[c]
+                        );
+                    }
+                    checked += 1;
                 }
             }
             assert!(checked > 200, "{checked}");

@@ -573,6 +573,7 @@ fn styled(
             }
         };
         ellipse.colour = ramp_colour(stops, u);
+        ellipse.colour_change = 0.0;
     }
     let mut scale = trail.intensity * (trail.fade + (1.0 - trail.fade) * along) / trail.density;
     let lighting = &scene.lighting;
