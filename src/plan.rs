@@ -852,6 +852,7 @@ fn plan_motion(
         let fit = measure(camera, object, &probes, open, close, max_segments);
         (deviation_px, longest_segment_px) = (drawn.error(&fit), fit.longest);
         capped = Some(SegmentCap::Footprints(max_segments));
+        uncapped_streaks = false;
     }
     // Each probe's screen path, summed over short chords in time order.
     let samples = 4 * segments.len().max(16);

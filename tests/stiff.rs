@@ -343,6 +343,9 @@ mod stiff {
         assert_eq!(*capped, Some(SegmentCap::Footprints(share)));
         assert_eq!(segments.len(), share);
         assert!(plan.explain(None).contains("motion footprints"));
+        // Each keyframe interval is straight, but the equal pieces of the cap are not the
+        // streaks as long as the path allows that it would otherwise be.
+        assert!(!plan.explain(None).contains("as long as the path allows"));
     }
 
     #[test]
