@@ -14,7 +14,7 @@ use crate::raster::{
     PREFILTER_VARIANCE_PX2,
 };
 use crate::scene::camera::Camera;
-use crate::scene::motion::Pose;
+use crate::scene::motion::{Motion, Pose};
 use crate::scene::shutter::{Shutter, TimeMoments};
 use crate::scene::{Lighting, Object};
 use crate::surfels::Surfel;
@@ -387,6 +387,28 @@ fn path_bend(across: DVec2, [t0, t1]: [f64; 2], moments: &TimeMoments) -> DVec2 
     across * (4.0 * (mean - mean_square))
 }
 
+/// How much a quantity changes from `start` to `end` as a share of its `middle` value; zero where
+/// that is not positive.
+fn share_of_change([start, middle, end]: [f64; 3]) -> f64 {
+    if middle > 0.0 {
+        (end - start) / middle
+    } else {
+        0.0
+    }
+}
+
+/// Where an object is seen at the middle of each of `spans` (time intervals).
+pub(crate) fn middle_instants(
+    camera: &Camera,
+    motion: &Motion,
+    spans: impl IntoIterator<Item = [f64; 2]>,
+) -> Vec<Instant> {
+    spans
+        .into_iter()
+        .map(|[t0, t1]| Instant::new(camera, &motion.pose_at(0.5 * (t0 + t1))))
+        .collect()
+}
+
 /// A surfel seen over one sub-segment [t0, t1]: at its two ends, and where its centre is on
 /// screen at (t0 + t1)/2 (`None` when not in front of the near plane).
 pub(crate) struct SubSegmentView<'a> {
@@ -513,19 +535,11 @@ pub(crate) fn motion_ellipse(
             let covariance = splat + Sym2::outer(chord).scaled(motion_variance);
             (covariance, DVec2::ZERO, time)
         };
-    let weight_change = if mean.weight > 0.0 {
-        (b.weight - a.weight) / mean.weight
-    } else {
-        0.0
-    };
+    let weight_change = share_of_change([a.weight, mean.weight, b.weight]);
     // Shading scales a surfel's albedo by its irradiance (white lights), so its colour changes
     // by one share in every channel: taken over the channels' sum.
-    let mean_sum: f32 = mean.colour.iter().sum();
-    let colour_change = if mean_sum > 0.0 {
-        f64::from((b.colour.iter().sum::<f32>() - a.colour.iter().sum::<f32>()) / mean_sum)
-    } else {
-        0.0
-    };
+    let colour_change =
+        share_of_change([a, &mean, b].map(|splat| f64::from(splat.colour.iter().sum::<f32>())));
     Ok(ScreenSplat {
         center: a.center + chord * s + bend,
         covariance,

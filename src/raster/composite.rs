@@ -178,13 +178,13 @@ impl<const B: usize> PixelState<B> {
         ];
         self.follow(depth, f.depth_tolerance, &span);
         if f.additive {
-            for (sum, colour) in self.group_emission.iter_mut().zip(f.colour) {
-                *sum += w * colour;
+            for c in 0..3 {
+                self.group_emission[c] += w * f.colour[c];
             }
             return;
         }
-        for (sum, colour) in self.group_colour.iter_mut().zip(f.colour) {
-            *sum += w * colour;
+        for c in 0..3 {
+            self.group_colour[c] += w * f.colour[c];
         }
         self.group_weight += w;
         if B == 1 {

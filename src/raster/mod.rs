@@ -310,8 +310,19 @@ impl Footprint {
                 (shape.value(shape.row(dy), dx), None)
             }
         };
-        let shift = self.amplitude * moment * slope.unwrap_or(0.0);
-        (self.amplitude * value, self.colour.map(|c| shift * c))
+        (
+            self.amplitude * value,
+            self.colour_change_at(moment, slope.unwrap_or(0.0)),
+        )
+    }
+
+    /// What a streak's colour changing by `slope` of itself per standard deviation along its chord
+    /// adds to its light at a pixel where the shape's first moment is `moment` (see
+    /// [`Shape::value`]).
+    #[inline(always)]
+    fn colour_change_at(&self, moment: f32, slope: f32) -> [f32; 3] {
+        let shift = self.amplitude * moment * slope;
+        self.colour.map(|c| shift * c)
     }
 
     /// The time interval during which the footprint covers pixel (x, y).
@@ -865,8 +876,7 @@ fn composite_footprint<const B: usize>(
             if weight > 0.0 {
                 state.add(f, weight, [x, y], bins);
                 if let Some(slope) = colour_slope {
-                    let shift = f.amplitude * moment * slope;
-                    state.add_colour_change(f.additive, f.colour.map(|c| shift * c));
+                    state.add_colour_change(f.additive, f.colour_change_at(moment, slope));
                 }
             }
         }

@@ -12,8 +12,8 @@
 use super::{draw, Exposure, Render, Stats};
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
-    motion_ellipse, object_footprints_at, per_surfel, view_surfel, Cull, Instant, SubSegmentView,
-    SurfelView,
+    middle_instants, motion_ellipse, object_footprints_at, per_surfel, view_surfel, Cull, Instant,
+    SubSegmentView, SurfelView,
 };
 use crate::raster::TimeBins;
 use crate::scene::shutter::TimeMoments;
@@ -51,10 +51,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             .collect();
         // Where each surfel is at each sub-segment's middle: its path's bend (see
         // `motion_ellipse`).
-        let middles: Vec<Instant> = segments
-            .iter()
-            .map(|&[t0, t1]| Instant::new(camera, &object.motion.pose_at(0.5 * (t0 + t1))))
-            .collect();
+        let middles = middle_instants(camera, &object.motion, segments.iter().copied());
         let chained = segments.len() > 1;
         let moments: Vec<TimeMoments> = segments
             .iter()

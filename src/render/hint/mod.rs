@@ -14,8 +14,8 @@ use super::{MethodStats, Render, Stats};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::project::{
-    motion_ellipse, per_surfel, static_footprint, view_surfel, Cull, Culled, Instant,
-    SubSegmentView, SurfelView,
+    middle_instants, motion_ellipse, per_surfel, static_footprint, view_surfel, Cull, Culled,
+    Instant, SubSegmentView, SurfelView,
 };
 use crate::raster::{rasterize, Footprint, Layer, RasterStats, ScreenSplat, Target, TimeBins};
 use crate::scene::shutter::{Shutter, ShutterShape};
@@ -480,13 +480,11 @@ fn object_trails(
         .iter()
         .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
         .collect();
-    let middles: Vec<Instant> = pieces
-        .iter()
-        .map(|piece| {
-            let [t0, t1] = piece.real;
-            Instant::new(camera, &object.motion.pose_at(0.5 * (t0 + t1)))
-        })
-        .collect();
+    let middles = middle_instants(
+        camera,
+        &object.motion,
+        pieces.iter().map(|piece| piece.real),
+    );
     per_surfel(surfels.len(), out, |i, kept, culled| {
         if !emits[i] {
             return;
