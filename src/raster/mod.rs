@@ -821,15 +821,9 @@ fn render_tile<'s, const B: usize>(
         match f.streak {
             Some(streak) => {
                 let shape = StreakRows::new(streak, f.center, f.bounds);
-                composite_footprint(
-                    f,
-                    &shape,
-                    Some(streak.colour_slope),
-                    pixels,
-                    tile,
-                    target,
-                    bins,
-                );
+                // An even colour has no change to add per pixel.
+                let colour_slope = (streak.colour_slope != 0.0).then_some(streak.colour_slope);
+                composite_footprint(f, &shape, colour_slope, pixels, tile, target, bins);
             }
             None => {
                 let shape = Ellipse::new(f, target.texture);

@@ -236,6 +236,15 @@ impl Shape for StreakRows {
         if q > CUTOFF_Q || v.abs() > h + CUTOFF_SIGMAS as f32 {
             return (0.0, 0.0);
         }
+        if v.abs() <= h - PHI_RANGE {
+            // Both ends lie beyond the table, where Φ is 0 or 1 and φ is 0 to within 10⁻⁹: the
+            // moments below are M₀ = 1, M₁ = v and M₂ = v² + 1 (about half of a long streak).
+            let across = exp_half(self.gaussian, q);
+            return (
+                across * (1.0 + s.slope * v),
+                across * (v + s.slope * (v * v + 1.0)),
+            );
+        }
         let even_colour = s.colour_slope == 0.0;
         if s.slope == 0.0 && even_colour {
             let value = phi(self.phi, h - v) - phi(self.phi, -h - v);
