@@ -12,7 +12,7 @@ use crate::cache::Recent;
 use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
-use crate::project::{Culled, DEPTH_TOLERANCE_SIGMAS};
+use crate::project::Culled;
 use crate::render::triangles::shadow::{light_camera, MAX_SHADOWED_LIGHTS};
 use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
 use crate::scene::camera::Camera;
@@ -464,7 +464,7 @@ impl<'a> Plan<'a> {
                     }
                     if *uncapped_streaks {
                         line(format!(
-                            "    streaks as long as the path allows (otherwise at most {SEGMENT_LENGTH_PER_TOLERANCE} tolerances): it does not turn, no spot light shades it, and its depth changes by less than its surfels' depth tolerance"
+                            "    streaks as long as the path allows (otherwise at most {SEGMENT_LENGTH_PER_TOLERANCE} tolerances): it does not turn, no spot light shades it, and its surfels' size on screen changes by less than the tolerance"
                         ));
                     }
                     match capped {
@@ -638,9 +638,8 @@ struct ProbeView {
     facing_weight: f64,
     /// Camera-space position.
     view: DVec3,
-    /// The surfel's own depth tolerance, its largest standard deviation times
-    /// [`DEPTH_TOLERANCE_SIGMAS`], in camera-space units.
-    depth_tolerance: f64,
+    /// The surfel's largest standard deviation on screen, px.
+    screen_sigma: f64,
 }
 
 /// Every probe at time t, each `None` when not in front of the camera. The pose is evaluated
@@ -666,7 +665,7 @@ fn probes_at(camera: &Camera, object: &Object, probes: &[usize], t: f64) -> Vec<
                 .max(pose.transform_vector3(surfel.axis_v).length());
             Some(ProbeView {
                 view: p_view,
-                depth_tolerance: DEPTH_TOLERANCE_SIGMAS * sigma,
+                screen_sigma: sigma * camera.focal_px / depth,
                 screen,
                 weight: n_view.dot(-p_view) / depth_cubed,
                 facing_weight: p_view.length() / depth_cubed,
@@ -710,14 +709,15 @@ struct Fit {
     /// The same on screen: from where uniform motion along its screen chord puts it (an exact
     /// streak's path).
     uniform: f64,
-    /// Largest change of a probe's depth over a piece, in its own depth tolerances.
-    depth_change: f64,
+    /// Largest change of a probe's screen size (its splat's largest standard deviation) over a
+    /// piece, px.
+    size_change: f64,
 }
 
 /// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal
 /// pieces of [t0, t1].
 fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
-    let (mut deviation, mut longest, mut weight, mut timed, mut uniform, mut depth_change) =
+    let (mut deviation, mut longest, mut weight, mut timed, mut uniform, mut size_change) =
         (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let at = |t: f64| probes_at(camera, object, probes, t);
     // Each piece starts where the one before ends.
@@ -737,8 +737,7 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
                 continue;
             };
             longest = longest.max(pa.screen.distance(pb.screen));
-            depth_change = depth_change
-                .max((pb.view.z - pa.view.z).abs() / pa.depth_tolerance.min(pb.depth_tolerance));
+            size_change = size_change.max((pb.screen_sigma - pa.screen_sigma).abs());
             for (s, views) in (1..DEVIATION_SAMPLES).zip(&inside) {
                 let share = s as f64 / DEVIATION_SAMPLES as f64;
                 let Some(p) = views[probe] else {
@@ -766,7 +765,7 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
         weight,
         timed,
         uniform,
-        depth_change,
+        size_change,
     }
 }
 
@@ -800,11 +799,12 @@ fn plan_motion(
             break;
         }
         let (t0, t1) = (pair[0], pair[1]);
-        // A streak holds its colour, orientation and widened depth tolerance over its chord: free
-        // of the length cap where none of them changes.
+        // A streak holds its splat's shape over its chord (its light and colour change along it
+        // only linearly): free of the length cap where the object does not turn, no spot light
+        // shades it, and no probe's size on screen changes by more than the tolerance.
         let turns = object.motion.turns_within(t0, t1);
         let uncapped = |fit: &Fit| {
-            drawn == Drawn::Streaks { spot_lit: false } && !turns && fit.depth_change <= 1.0
+            drawn == Drawn::Streaks { spot_lit: false } && !turns && fit.size_change <= tolerance_px
         };
         let mut k = 1;
         let fit = loop {

@@ -321,20 +321,31 @@ pub fn object_footprints_at(
     culled.add(&tally);
 }
 
-/// Depth gradient of a motion ellipse. A pixel on the chord is covered when the moving splat
-/// passes over it, so along the chord depth follows the surfel (Δd over the chord length) and
-/// across it the splat plane's gradient holds. When the chord is short against the splat's own
-/// spread σ along it, the footprint is mostly the splat, so the along-chord slope blends from the
-/// plane's to the streak's as f = chord² / (chord² + (2σ)²).
-fn streak_depth_gradient(plane: DVec2, chord: DVec2, depth_change: f64, splat: Sym2) -> DVec2 {
+/// Depth of a motion ellipse or streak over the pixels it covers: its screen gradient, and how
+/// much farther than a still splat's the surface's depth at a covered pixel may stray from it. A
+/// pixel on the chord is covered when the moving splat passes over it, so along the chord depth
+/// follows the surfel (a slope of Δd over the chord length) and across it the splat plane's
+/// gradient holds. When the chord is short against the splat's own spread σ along it, the
+/// footprint is mostly the splat, so the along-chord slope blends from the plane's to the
+/// streak's as f = chord² / (chord² + (2σ)²). At a pixel a along the chord from its middle,
+/// covered while the splat's centre is at s (|s − a| ≤ 3σ, |s| ≤ chord/2), the plane's depth is
+/// off by slope·(s − f·a) − plane slope·((1 − f)·s + f·(s − a)); the last part, the plane's depth
+/// across the splat, is in every splat's own tolerance already (docs/math.md, "Depth along a
+/// streak").
+fn streak_depth(plane: DVec2, chord: DVec2, depth_change: f64, splat: Sym2) -> (DVec2, f64) {
     let chord_sq = chord.length_squared();
     if !(chord_sq > 0.0) {
-        return plane;
+        return (plane, 0.0);
     }
     let length = chord_sq.sqrt();
     let along = chord / length;
-    let f = chord_sq / (chord_sq + 4.0 * splat.quadratic(along));
-    plane + along * ((depth_change / length - plane.dot(along)) * f)
+    let spread_sq = splat.quadratic(along);
+    let f = chord_sq / (chord_sq + 4.0 * spread_sq);
+    let (slope, plane_slope) = (depth_change / length, plane.dot(along));
+    let half_chord = (1.0 - f) * 0.5 * length;
+    let stray = slope.abs() * (half_chord + f * CUTOFF_SIGMAS * spread_sq.sqrt())
+        + plane_slope.abs() * half_chord;
+    (plane + along * ((slope - plane_slope) * f), stray)
 }
 
 /// The splat a share `s` of the way from `a` to `b`: every quantity interpolated linearly.
@@ -482,12 +493,12 @@ pub(crate) fn motion_ellipse(
     // In exposure time (0 at shutter open, 1 at close), as the rasterizer counts it.
     let exposure = shutter.duration();
     let exposure_time = |t: f64| (t - shutter.open) / exposure;
-    let depth_gradient =
-        streak_depth_gradient(mean.depth_gradient, chord, b.depth - a.depth, splat);
-    let depth_tolerance = a.depth_tolerance.max(b.depth_tolerance) + (b.depth - a.depth).abs();
+    let (depth_gradient, streak_stray) =
+        streak_depth(mean.depth_gradient, chord, b.depth - a.depth, splat);
+    let own_tolerance = a.depth_tolerance.max(b.depth_tolerance);
     let conic = splat.inverse();
     let length_sq = conic.map_or(0.0, |q| q.quadratic(chord));
-    let (covariance, sweep, time) =
+    let (covariance, sweep, time, depth_tolerance) =
         if exact_streak && length_sq >= MIN_STREAK_SIGMAS * MIN_STREAK_SIGMAS {
             // A pixel is passed when the splat's centre is nearest it in the splat's own metric, at
             // v/k chord lengths from the middle (docs/math.md, "Exact streaks"), for √3 of the
@@ -499,7 +510,9 @@ pub(crate) fn motion_ellipse(
                 half_width: (3.0 / length_sq).sqrt().min(1.0) * duration / exposure,
                 span: [exposure_time(t0), exposure_time(t1)],
             };
-            (splat, chord, time)
+            // Widened by how far its depth may stray from the surface's where it covers a pixel,
+            // which a long chord does not add to.
+            (splat, chord, time, own_tolerance + streak_stray)
         } else {
             let uniform_variance = moments.variance / (duration * duration);
             let mut motion_variance = uniform_variance;
@@ -533,7 +546,10 @@ pub(crate) fn motion_ellipse(
                 ],
             };
             let covariance = splat + Sym2::outer(chord).scaled(motion_variance);
-            (covariance, DVec2::ZERO, time)
+            // An ellipse reaches past its chord's ends, where a covered pixel may lie farther
+            // than 3σ from the splat's centre: widened by the whole change of depth.
+            let depth_tolerance = own_tolerance + (b.depth - a.depth).abs();
+            (covariance, DVec2::ZERO, time, depth_tolerance)
         };
     let weight_change = share_of_change([a.weight, mean.weight, b.weight]);
     // Shading scales a surfel's albedo by its irradiance (white lights), so its colour changes
@@ -576,6 +592,55 @@ mod tests {
 
     fn surfel(normal: DVec3) -> Surfel {
         Surfel::isotropic(DVec3::ZERO, normal, 0.01, None, [1.0; 3])
+    }
+
+    #[test]
+    fn a_streak_s_depth_strays_from_the_surface_by_no_more_than_its_widening() {
+        // At a pixel a along the chord from its middle, covered while the splat's centre is at s
+        // (|s − a| ≤ 3σ, |s| ≤ chord/2), the splat plane's depth is d + slope·s + plane·(a − s)
+        // and the footprint's d + gradient·a. Beyond the plane's own depth across 3σ (in every
+        // splat's tolerance), they differ by at most the widening: checked at 201 × 61 points,
+        // for chords short and long, along and against the plane's slope.
+        let splat = Sym2 {
+            xx: 2.0,
+            xy: 0.3,
+            yy: 1.0,
+        };
+        let plane = DVec2::new(0.004, -0.002);
+        for chord in [
+            DVec2::new(0.8, 0.3),
+            DVec2::new(3.0, -1.0),
+            DVec2::new(40.0, 10.0),
+            DVec2::new(-100.0, 30.0),
+        ] {
+            for change in [0.0, 0.05, -0.4, 2.0] {
+                let (gradient, stray) = streak_depth(plane, chord, change, splat);
+                let length = chord.length();
+                let along = chord / length;
+                let sigma = splat.quadratic(along).sqrt();
+                let (slope, plane_slope) = (change / length, plane.dot(along));
+                let own = plane_slope.abs() * CUTOFF_SIGMAS * sigma;
+                for i in 0..=200 {
+                    let s = length * (f64::from(i) / 200.0 - 0.5);
+                    for j in 0..=60 {
+                        let a = s + CUTOFF_SIGMAS * sigma * (f64::from(j) / 30.0 - 1.0);
+                        let surface = slope * s + plane_slope * (a - s);
+                        let footprint = gradient.dot(along) * a;
+                        assert!(
+                            (surface - footprint).abs() <= stray + own + 1e-12,
+                            "chord {chord}, change {change}: off by {} at s = {s}, a = {a}; \
+                             widened by {stray} + {own}",
+                            (surface - footprint).abs()
+                        );
+                    }
+                }
+                // A long chord is widened by what the splat moves in depth while it passes a
+                // pixel, a small share of its whole change (which an ellipse is widened by).
+                if length > 50.0 && change != 0.0 {
+                    assert!(stray < 0.1 * change.abs(), "{stray} against {change}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -83,17 +83,22 @@ fn blur_matches_the_reference_when_segments_are_short() {
 }
 
 #[test]
-fn a_streak_is_as_long_as_a_straight_path_unless_its_colour_may_change_along_it() {
+fn a_streak_is_as_long_as_a_straight_path_unless_its_shape_may_change_along_it() {
     // 48 px in a straight line: the tolerance (1 px) holds for one chord of any length, and an
     // exact streak of it is the closed form.
     let (scene, exact) = translating_scene();
-    let segments = |scene: &streak::Scene| {
+    let planned = |scene: &streak::Scene| {
         let plan = streak::Plan::new(scene, &Method::BLUR).unwrap();
         match &plan.objects[0].motion {
-            streak::plan::ObjectMotion::Moving { segments, .. } => segments.len(),
+            streak::plan::ObjectMotion::Moving {
+                segments,
+                uncapped_streaks,
+                ..
+            } => (segments.len(), *uncapped_streaks),
             streak::plan::ObjectMotion::Still => panic!("the splat moves"),
         }
     };
+    let segments = |scene: &streak::Scene| planned(scene).0;
     assert_eq!(segments(&scene), 1);
     // The render truncates at 3σ and renormalizes: 2 % in L1, as for one ellipse.
     let error = relative_l1(&red(&draw(&scene, &Method::BLUR)), &exact);
@@ -114,6 +119,29 @@ fn a_streak_is_as_long_as_a_straight_path_unless_its_colour_may_change_along_it(
                 .unwrap(),
         ];
     assert_eq!(segments(&spot_lit), 2);
+    // Moving 0.6 units in depth (more than the splat's own depth tolerance, 0.5) its size on
+    // screen changes by 0.12 px, under the tolerance: still one streak, its depth along it
+    // following the splat, and as close to the reference as across the view.
+    let mut in_depth = scene.clone();
+    in_depth.objects[0].motion = motion(&[
+        (0.0, pose(DVec3::new(-2.0, 0.0, -0.3), 0.0)),
+        (1.0, pose(DVec3::new(2.0, 0.0, 0.3), 0.0)),
+    ]);
+    assert_eq!(planned(&in_depth), (1, true));
+    let reference = red(&draw(&in_depth, &Method::Reference { samples: 2048 }));
+    let error = relative_l1(&red(&draw(&in_depth, &Method::BLUR)), &reference);
+    assert!(
+        error < 0.03,
+        "one streak in depth vs the reference: {error}"
+    );
+    // Flying to half its distance, the splat doubles in size (2 → 4 px): cut into pieces over
+    // which its size changes by at most the tolerance, at least two.
+    let mut nearing = scene.clone();
+    nearing.objects[0].motion = motion(&[
+        (0.0, pose(DVec3::new(-2.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(2.0, 0.0, DISTANCE / 2.0), 0.0)),
+    ]);
+    assert!(segments(&nearing) >= 2);
 }
 
 #[test]
