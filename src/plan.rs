@@ -3,8 +3,8 @@
 //! object's shutter interval is cut at its keyframes and then into as few linear sub-segments as
 //! keep every probed point's screen path within the method's tolerance of its chord (of uniform
 //! motion along it, for exact streaks and triangles) and every surfel sub-segment shorter than
-//! [`SEGMENT_LENGTH_PER_TOLERANCE`] tolerances, but exact streaks along which nothing they hold
-//! changes; a scene with no light runs no shading. A path crossing the near plane is cut into [`MAX_SEGMENTS_PER_INTERVAL`]
+//! [`SEGMENT_LENGTH_PER_TOLERANCE`] tolerances, but exact streaks whose splat keeps its shape
+//! along them; a scene with no light runs no shading. A path crossing the near plane is cut into [`MAX_SEGMENTS_PER_INTERVAL`]
 //! pieces, so that the renderers drop only the piece around the crossing. Derivation:
 //! docs/math.md, "Sub-segment planning".
 
@@ -27,12 +27,11 @@ use std::sync::Arc;
 /// A surfel's sub-segment may be at most this many tolerances long on screen. One motion ellipse
 /// stands for a whole segment with a single Gaussian; a long one differs from the true streak (a
 /// box along the motion convolved with the splat) at its ends, so shorter segments converge to
-/// it. An exact streak has no such error, but it carries the splat's orientation at the chord's
-/// middle over all of it, its light and colour only linear along it, and its depth tolerance
-/// widened by its change of depth. Where none of them changes (the object does not turn, no spot
-/// light shades it by where it is, and no probe's depth changes by more than its own tolerance)
-/// the cap is lifted for streaks: there it cost time without making them more accurate.
-/// Docs/math.md, "Sub-segment planning", has the measurements.
+/// it. An exact streak has no such error, but it carries the splat's shape at the chord's middle
+/// over all of it, and its light and colour only linear along it. Where the shape holds (the
+/// object does not turn, no spot light shades it by where it is, and no probe's size on screen
+/// changes by more than the tolerance) the cap is lifted for streaks: there it cost time without
+/// making them more accurate. Docs/math.md, "Sub-segment planning", has the measurements.
 pub const SEGMENT_LENGTH_PER_TOLERANCE: f64 = 32.0;
 
 /// Largest departure of a probe's screen weight from the straight line between a sub-segment's
@@ -776,7 +775,7 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
 /// same time, and neither a chord's length nor a splat's weight bends anything; an exact streak
 /// slides uniformly along its screen chord, for any length; an ellipse stands for a path within
 /// the tolerance of its chord. Surfels' sub-segments are at most [`SEGMENT_LENGTH_PER_TOLERANCE`]
-/// long, but streaks whose colour and orientation cannot change along them.
+/// long, but streaks whose splat keeps its shape along them.
 fn plan_motion(
     camera: &Camera,
     object: &Object,

@@ -303,11 +303,11 @@ impl Footprint {
         let ((value, moment), slope) = match self.streak {
             Some(streak) => {
                 let shape = StreakRows::new(streak, self.center, self.bounds);
-                (shape.value(shape.row(dy), dx), Some(streak.colour_slope))
+                (shape.value(shape.row(dy), dx), shape.colour_slope())
             }
             None => {
                 let shape = Ellipse::new(self, texture);
-                (shape.value(shape.row(dy), dx), None)
+                (shape.value(shape.row(dy), dx), shape.colour_slope())
             }
         };
         (
@@ -466,9 +466,12 @@ trait Shape {
     fn row(&self, dy: f32) -> Self::Row;
     /// The value before the amplitude at offset `dx` from the centre in `row` (zero beyond the
     /// cut-off), and its first moment along the shape: the value times where along a streak's
-    /// chord its light there comes from on average, in standard deviations (zero for an ellipse
-    /// and for a streak whose colour is even).
+    /// chord its light there comes from on average, in standard deviations (zero for an ellipse;
+    /// needed only where [`Shape::colour_slope`] is some).
     fn value(&self, row: Self::Row, dx: f32) -> (f32, f32);
+    /// How much its colour changes per unit along it, as a share of itself, where it changes
+    /// (see [`Shape::value`]): `None` for an ellipse and for a streak whose colour is even.
+    fn colour_slope(&self) -> Option<f32>;
 }
 
 /// An elliptical footprint: its rows, conic and profile.
@@ -512,6 +515,10 @@ impl Shape for Ellipse<'_> {
         } else {
             (self.sampler.value([dx, dy], q), 0.0)
         }
+    }
+
+    fn colour_slope(&self) -> Option<f32> {
+        None
     }
 }
 
@@ -821,27 +828,22 @@ fn render_tile<'s, const B: usize>(
         match f.streak {
             Some(streak) => {
                 let shape = StreakRows::new(streak, f.center, f.bounds);
-                // An even colour has no change to add per pixel.
-                let colour_slope = (streak.colour_slope != 0.0).then_some(streak.colour_slope);
-                composite_footprint(f, &shape, colour_slope, pixels, tile, target, bins);
+                composite_footprint(f, &shape, pixels, tile, target, bins);
             }
             None => {
                 let shape = Ellipse::new(f, target.texture);
-                composite_footprint(f, &shape, None, pixels, tile, target, bins);
+                composite_footprint(f, &shape, pixels, tile, target, bins);
             }
         }
     }
     pixels
 }
 
-/// Composite footprint `f`, drawn as `shape` whose colour changes by `colour_slope` of itself
-/// per unit along it (see [`Shape::value`]; `None` where it cannot), into the open pixel states
-/// of `tile`.
+/// Composite footprint `f`, drawn as `shape`, into the open pixel states of `tile`.
 #[inline]
 fn composite_footprint<const B: usize>(
     f: &Footprint,
     shape: &impl Shape,
-    colour_slope: Option<f32>,
     pixels: &mut [PixelState<B>],
     [x0, y0, x1, y1]: [u32; 4],
     target: &Target,
@@ -849,6 +851,7 @@ fn composite_footprint<const B: usize>(
 ) {
     let w = (x1 - x0) as usize;
     let [_, fy0, _, fy1] = f.bounds;
+    let colour_slope = shape.colour_slope();
     for y in fy0.max(y0)..fy1.min(y1) {
         let row = (y - y0) as usize * w;
         let (sx0, sx1) = shape.span(y);

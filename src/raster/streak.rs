@@ -271,6 +271,12 @@ impl Shape for StreakRows {
             - ((h - v) * density_upper + (h + v) * density_lower);
         (value, across * (m1 + s.slope * m2))
     }
+
+    #[inline]
+    fn colour_slope(&self) -> Option<f32> {
+        let slope = self.streak.colour_slope;
+        (slope != 0.0).then_some(slope)
+    }
 }
 
 #[cfg(test)]
