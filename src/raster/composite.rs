@@ -8,7 +8,7 @@
 //! (an instant) this is plain front-to-back compositing with α = opacity(Σw). Why bins, with the
 //! measurements: docs/math.md, "Time bins for coverage".
 
-use super::{larger, opacity, smaller, Footprint};
+use super::{larger, opacity, smaller, Footprint, Passage};
 use crate::scene::shutter::Shutter;
 
 /// Once this share of the exposure is left unoccluded at a pixel, farther surfaces cannot change
@@ -71,6 +71,24 @@ fn bin_span<const B: usize>([lo, hi]: [f32; 2], bins: &TimeBins<B>) -> BinSpan {
         u0,
         u1,
     }
+}
+
+/// The depth of a footprint's surface at a pixel in each bin of `span`, at the bin's middle time
+/// (the first bin's, and the step from one bin to the next): every footprint is compared there,
+/// so two of one surface's footprints passing the pixel at different times of one bin agree
+/// (docs/math.md, "Depth along a motion footprint"). One bin is an instant.
+#[inline(always)]
+fn depths_in_bins<const B: usize>(
+    passage: &Passage,
+    span: &BinSpan,
+    bins: &TimeBins<B>,
+) -> (f32, f32) {
+    if B == 1 || passage.depth_rate == 0.0 {
+        return (passage.depth, 0.0);
+    }
+    let width = 1.0 / bins.bins_per_time;
+    let middle = bins.start + (span.first as f32 + 0.5) * width;
+    (passage.depth_then(middle), passage.depth_rate * width)
 }
 
 /// Front-to-back compositing state of one pixel.
@@ -141,8 +159,9 @@ impl<const B: usize> PixelState<B> {
 
     /// Add footprint `f` with weight `w` at this pixel, (x, y).
     ///
-    /// The ternary depth test is made per time bin, against the surface's depth in that bin:
-    /// `f` belongs to the open group when, in every bin its time window overlaps, it lies within
+    /// The ternary depth test is made per time bin, against the surface's depth in that bin, each
+    /// at the bin's middle time: `f` belongs to the open group when, in every bin its time window
+    /// overlaps, it lies within
     /// the larger of its own and the group's tolerance there. The group's depth in a bin moves on
     /// to each member that steps less than the smaller of the two tolerances behind it, so a
     /// surface whose depth drifts over the exposure (the sloping side of a sliding sphere passes
@@ -152,22 +171,33 @@ impl<const B: usize> PixelState<B> {
     /// to the next.
     #[inline(always)]
     pub(super) fn add(&mut self, f: &Footprint, w: f32, [x, y]: [u32; 2], bins: &TimeBins<B>) {
-        let depth = f.depth_at(x, y);
-        let span = if B == 1 {
-            BinSpan {
+        let (passage, span) = if B == 1 {
+            let passage = Passage {
+                window: [0.0, 1.0],
+                time: 0.0,
+                depth: f.depth_at(x, y),
+                depth_rate: 0.0,
+            };
+            let whole = BinSpan {
                 first: 0,
                 last: 1,
                 u0: 0.0,
                 u1: 1.0,
-            }
+            };
+            (passage, whole)
         } else {
-            bin_span(f.time_window_at(x, y), bins)
+            let passage = f.passage_at(x, y);
+            (passage, bin_span(passage.window, bins))
         };
+        let (depth, step) = depths_in_bins(&passage, &span, bins);
+        let mut in_bin = depth;
         let same_surface = self.group_depth[span.bins()]
             .iter()
             .zip(&self.group_tolerance[span.bins()])
             .all(|(&group_depth, &group_tolerance)| {
-                depth - group_depth <= larger(group_tolerance, f.depth_tolerance)
+                let near = in_bin - group_depth <= larger(group_tolerance, f.depth_tolerance);
+                in_bin += step;
+                near
             });
         if !same_surface {
             self.close_group(bins);
@@ -176,7 +206,7 @@ impl<const B: usize> PixelState<B> {
             self.group_bins[0].min(span.first),
             self.group_bins[1].max(span.last),
         ];
-        self.follow(depth, f.depth_tolerance, &span);
+        self.follow([depth, step], f.depth_tolerance, &span);
         if f.additive {
             for c in 0..3 {
                 self.group_emission[c] += w * f.colour[c];
@@ -208,21 +238,24 @@ impl<const B: usize> PixelState<B> {
         }
     }
 
-    /// Move the group's depth in the bins of `span` on to a member at `depth`: in bins it did not
-    /// cover yet, and where it lies behind by less than the smaller tolerance.
+    /// Move the group's depth in the bins of `span` on to a member at `depth` in its first bin and
+    /// `step` more in each next one: in bins it did not cover yet, and where it lies behind by
+    /// less than the smaller tolerance.
     #[inline]
-    fn follow(&mut self, depth: f32, tolerance: f32, span: &BinSpan) {
+    fn follow(&mut self, [depth, step]: [f32; 2], tolerance: f32, span: &BinSpan) {
+        let mut in_bin = depth;
         for (group_depth, group_tolerance) in self.group_depth[span.bins()]
             .iter_mut()
             .zip(&mut self.group_tolerance[span.bins()])
         {
-            let step = depth - *group_depth;
+            let behind = in_bin - *group_depth;
             if *group_depth == f32::INFINITY
-                || (step > 0.0 && step <= smaller(*group_tolerance, tolerance))
+                || (behind > 0.0 && behind <= smaller(*group_tolerance, tolerance))
             {
-                *group_depth = depth;
+                *group_depth = in_bin;
                 *group_tolerance = tolerance;
             }
+            in_bin += step;
         }
     }
 
@@ -383,6 +416,7 @@ mod tests {
             depth,
             depth_gradient: DVec2::ZERO,
             depth_tolerance: 0.01,
+            depth_rate: 0.0,
             time: TimeExtent {
                 center: 0.5 * (span[0] + span[1]),
                 gradient: DVec2::ZERO,

@@ -94,6 +94,10 @@ pub struct Footprint {
     pub depth_gradient: [f32; 2],
     /// Depth distance within which another footprint counts as the same surface.
     pub depth_tolerance: f32,
+    /// How fast the surface's depth at a fixed pixel changes with exposure time: at time t the
+    /// splat plane lies at `depth` + gradient · offset + `depth_rate` · (t − `time_center`)
+    /// (see [`ScreenSplat::depth_rate`]).
+    pub depth_rate: f32,
     /// When it covers which pixel: see [`TimeExtent`].
     pub time_center: f32,
     /// Screen gradient of the covering time, per px.
@@ -142,6 +146,27 @@ impl TimeExtent {
     };
 }
 
+/// When a footprint covers a pixel, and the depth of its surface there over time.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Passage {
+    /// The exposure times [start, end] during which it covers the pixel.
+    pub window: [f32; 2],
+    /// The middle of the window, clamped to the footprint's span.
+    pub time: f32,
+    /// The surface's depth at the pixel at `time`.
+    pub depth: f32,
+    /// Its change per unit of exposure time (see [`Footprint::depth_rate`]).
+    pub depth_rate: f32,
+}
+
+impl Passage {
+    /// The surface's depth at the pixel at exposure time `t`.
+    #[inline]
+    pub fn depth_then(&self, t: f32) -> f32 {
+        self.depth + self.depth_rate * (t - self.time)
+    }
+}
+
 /// Why a footprint was not made.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Rejection {
@@ -169,6 +194,13 @@ pub struct ScreenSplat {
     pub depth_gradient: DVec2,
     /// Depth distance within which another splat counts as the same surface.
     pub depth_tolerance: f64,
+    /// How fast the surface's depth at a fixed pixel changes with exposure time, per unit of it:
+    /// at time t the splat's plane lies at `depth` + `depth_gradient` · offset + `depth_rate` ·
+    /// (t − `time.center`). Zero for a still splat. A moving one's plane slides with it, so one
+    /// depth per pixel would be the surface's at the time the splat passes it, and two of the
+    /// surface's footprints passing a pixel at different times of one time bin would look like
+    /// two surfaces (docs/math.md, "Depth along a motion footprint").
+    pub depth_rate: f64,
     /// When it covers which pixel.
     pub time: TimeExtent,
     /// The shape of its value across the ellipse (Gaussian for every physically based renderer).
@@ -225,6 +257,7 @@ impl ScreenSplat {
             && self.depth.is_finite()
             && self.depth_gradient.is_finite()
             && self.depth_tolerance.is_finite()
+            && self.depth_rate.is_finite()
             && self.time.gradient.is_finite()
             && [
                 self.time.center,
@@ -258,6 +291,7 @@ impl ScreenSplat {
             depth: self.depth as f32,
             depth_gradient: self.depth_gradient.as_vec2().to_array(),
             depth_tolerance: self.depth_tolerance as f32,
+            depth_rate: self.depth_rate as f32,
             time_center: self.time.center as f32,
             time_gradient: self.time.gradient.as_vec2().to_array(),
             time_half_width: self.time.half_width as f32,
@@ -325,18 +359,35 @@ impl Footprint {
         self.colour.map(|c| shift * c)
     }
 
-    /// The time interval during which the footprint covers pixel (x, y).
+    /// When the footprint covers pixel (x, y), and its surface's depth there.
     #[inline]
-    #[must_use]
-    pub fn time_window_at(&self, x: u32, y: u32) -> [f32; 2] {
-        let [dx, dy] = self.offset(x, y);
+    pub(super) fn passage_at(&self, x: u32, y: u32) -> Passage {
+        let offset = self.offset(x, y);
+        let [lo, hi] = self.time_span;
+        let time = self.covering_time(offset);
+        Passage {
+            window: [
+                larger(time - self.time_half_width, lo),
+                smaller(time + self.time_half_width, hi),
+            ],
+            time,
+            depth: self.plane_depth(offset) + self.depth_rate * (time - self.time_center),
+            depth_rate: self.depth_rate,
+        }
+    }
+
+    /// The middle of the footprint's covering time at `offset` from its centre.
+    #[inline]
+    fn covering_time(&self, [dx, dy]: [f32; 2]) -> f32 {
         let [lo, hi] = self.time_span;
         let t = self.time_center + self.time_gradient[0] * dx + self.time_gradient[1] * dy;
-        let t = smaller(larger(t, lo), hi);
-        [
-            larger(t - self.time_half_width, lo),
-            smaller(t + self.time_half_width, hi),
-        ]
+        smaller(larger(t, lo), hi)
+    }
+
+    /// Depth of the splat plane at `offset` from its centre, at `time_center`.
+    #[inline]
+    fn plane_depth(&self, [dx, dy]: [f32; 2]) -> f32 {
+        self.depth + self.depth_gradient[0] * dx + self.depth_gradient[1] * dy
     }
 
     /// Call `visit` with the index of every tile (in a row of `tiles_x`) whose pixels the
@@ -378,12 +429,17 @@ impl Footprint {
         }
     }
 
-    /// Depth of the splat plane at the centre of pixel (x, y).
+    /// Depth of the splat plane at the centre of pixel (x, y) while the footprint covers it.
     #[inline]
     #[must_use]
     pub fn depth_at(&self, x: u32, y: u32) -> f32 {
-        let [dx, dy] = self.offset(x, y);
-        self.depth + self.depth_gradient[0] * dx + self.depth_gradient[1] * dy
+        let offset = self.offset(x, y);
+        let depth = self.plane_depth(offset);
+        if self.depth_rate == 0.0 {
+            depth
+        } else {
+            depth + self.depth_rate * (self.covering_time(offset) - self.time_center)
+        }
     }
 
     /// Pixel columns [x0, x1) of row `y` whose centres lie inside the cut-off ellipse (clipped
@@ -899,6 +955,7 @@ mod tests {
             depth,
             depth_gradient: DVec2::ZERO,
             depth_tolerance: 0.01,
+            depth_rate: 0.0,
             time: TimeExtent::WHOLE_FRAME,
             profile: Profile::Gaussian,
             sweep: DVec2::ZERO,

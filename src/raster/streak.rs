@@ -312,6 +312,7 @@ mod tests {
             depth: 1.0,
             depth_gradient: DVec2::ZERO,
             depth_tolerance: 0.01,
+            depth_rate: 0.0,
             time: TimeExtent::WHOLE_FRAME,
             profile: Profile::Gaussian,
             sweep,
