@@ -76,14 +76,14 @@ fn bin_span<const B: usize>([lo, hi]: [f32; 2], bins: &TimeBins<B>) -> BinSpan {
 /// The depth of a footprint's surface at a pixel in each bin of `span`, at the bin's middle time
 /// (the first bin's, and the step from one bin to the next): every footprint is compared there,
 /// so two of one surface's footprints passing the pixel at different times of one bin agree
-/// (docs/math.md, "Depth along a motion footprint"). One bin is an instant.
+/// (docs/math.md, "Depth along a motion footprint").
 #[inline(always)]
 fn depths_in_bins<const B: usize>(
     passage: &Passage,
     span: &BinSpan,
     bins: &TimeBins<B>,
 ) -> (f32, f32) {
-    if B == 1 || passage.depth_rate == 0.0 {
+    if passage.depth_rate == 0.0 {
         return (passage.depth, 0.0);
     }
     let width = 1.0 / bins.bins_per_time;
@@ -171,25 +171,21 @@ impl<const B: usize> PixelState<B> {
     /// to the next.
     #[inline(always)]
     pub(super) fn add(&mut self, f: &Footprint, w: f32, [x, y]: [u32; 2], bins: &TimeBins<B>) {
-        let (passage, span) = if B == 1 {
-            let passage = Passage {
-                window: [0.0, 1.0],
-                time: 0.0,
-                depth: f.depth_at(x, y),
-                depth_rate: 0.0,
-            };
+        // One bin is an instant: the footprint's depth at the pixel holds all of it.
+        let (span, depth, step) = if B == 1 {
             let whole = BinSpan {
                 first: 0,
                 last: 1,
                 u0: 0.0,
                 u1: 1.0,
             };
-            (passage, whole)
+            (whole, f.depth_at(x, y), 0.0)
         } else {
             let passage = f.passage_at(x, y);
-            (passage, bin_span(passage.window, bins))
+            let span = bin_span(passage.window, bins);
+            let (depth, step) = depths_in_bins(&passage, &span, bins);
+            (span, depth, step)
         };
-        let (depth, step) = depths_in_bins(&passage, &span, bins);
         let mut in_bin = depth;
         let same_surface = self.group_depth[span.bins()]
             .iter()

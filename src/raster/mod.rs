@@ -371,7 +371,7 @@ impl Footprint {
                 smaller(time + self.time_half_width, hi),
             ],
             time,
-            depth: self.plane_depth(offset) + self.depth_rate * (time - self.time_center),
+            depth: self.surface_depth(offset, time),
             depth_rate: self.depth_rate,
         }
     }
@@ -388,6 +388,12 @@ impl Footprint {
     #[inline]
     fn plane_depth(&self, [dx, dy]: [f32; 2]) -> f32 {
         self.depth + self.depth_gradient[0] * dx + self.depth_gradient[1] * dy
+    }
+
+    /// Depth of the splat plane at `offset` from its centre at exposure time `time`.
+    #[inline]
+    fn surface_depth(&self, offset: [f32; 2], time: f32) -> f32 {
+        self.plane_depth(offset) + self.depth_rate * (time - self.time_center)
     }
 
     /// Call `visit` with the index of every tile (in a row of `tiles_x`) whose pixels the
@@ -434,11 +440,10 @@ impl Footprint {
     #[must_use]
     pub fn depth_at(&self, x: u32, y: u32) -> f32 {
         let offset = self.offset(x, y);
-        let depth = self.plane_depth(offset);
         if self.depth_rate == 0.0 {
-            depth
+            self.plane_depth(offset)
         } else {
-            depth + self.depth_rate * (self.covering_time(offset) - self.time_center)
+            self.surface_depth(offset, self.covering_time(offset))
         }
     }
 
