@@ -223,8 +223,9 @@ struct Placed {
     window: [f64; 2],
     /// The segment's start and end time.
     time: [f64; 2],
-    /// The viewing camera's focal length, px.
-    focal_px: f64,
+    /// How far a linear depth piece may stray from the exact depth, as a share of the depth
+    /// ([`Prepared::depth_tolerance`]).
+    depth_tolerance: f64,
     /// Whether no corner moves: the triangle covers a sample all the time or never, at one depth.
     still: bool,
     /// Whether it is still and in front of the near plane over the whole exposure: a sample it
@@ -269,6 +270,10 @@ struct Prepared<'a> {
     /// Whether surfels are drawn behind these triangles, which [`TriangleImage::hidden_beyond`]
     /// leaves out.
     occludes_surfels: bool,
+    /// How far a linear depth piece may stray from the exact depth, as a share of the depth:
+    /// [`tct::DEPTH_TOLERANCE_PX`] in the image, [`shadow::DEPTH_TOLERANCE_TEXELS`] in a shadow
+    /// map, over the focal length.
+    depth_tolerance: f64,
 }
 
 /// An image of the triangle objects and where they hide what lies behind.
@@ -293,7 +298,9 @@ pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
         .iter()
         .map(|camera| {
             let map = ShadowMap::new(
-                Prepared::new(plan, camera.clone(), exposure, Vec::new()).occluders(),
+                Prepared::new(plan, camera.clone(), exposure, Vec::new())
+                    .with_depth_tolerance(shadow::DEPTH_TOLERANCE_TEXELS)
+                    .occluders(),
             );
             match exposure {
                 Exposure::Shutter => map.summarised(),
@@ -312,6 +319,7 @@ impl<'a> Prepared<'a> {
         shadows: Vec<ShadowMap>,
     ) -> Prepared<'a> {
         let scene = plan.scene();
+        let depth_tolerance = tct::DEPTH_TOLERANCE_PX / camera.focal_px;
         let camera_ref = &camera;
         let mut objects = Vec::new();
         for (index, (object, object_plan)) in scene.objects.iter().zip(&plan.objects).enumerate() {
@@ -382,9 +390,16 @@ impl<'a> Prepared<'a> {
             behind_near: 0,
             near_clipped: false,
             occludes_surfels: (0..scene.objects.len()).any(|index| !plan.draws_triangles(index)),
+            depth_tolerance,
         };
         (prepared.items, prepared.behind_near, prepared.near_clipped) = prepared.make_items(count);
         prepared
+    }
+
+    /// The same, its depth pieces within `px` pixels' (texels') width of the exact depth.
+    fn with_depth_tolerance(mut self, px: f64) -> Self {
+        self.depth_tolerance = px / self.camera.focal_px;
+        self
     }
 
     /// The segment of `item`.
@@ -417,7 +432,7 @@ impl<'a> Prepared<'a> {
             triangle,
             window,
             time: segment.time,
-            focal_px: self.camera.focal_px,
+            depth_tolerance: self.depth_tolerance,
             still,
             all_along: still
                 && window == [0.0, 1.0]
@@ -818,7 +833,7 @@ impl<'a> Prepared<'a> {
         stats.runs += 1;
         if let [piece @ Interval { bends: false, .. }] = run {
             stats.pieces += 1;
-            return self.piece_colour(piece, d, &mut work.cuts, tile.unshadowed, stats);
+            return self.piece_colour(piece, d, &mut work.cuts, tile, stats);
         }
         if let Some(colour) = self.lit_run_colour(run, d, work, tile) {
             stats.pieces += run.len();
@@ -837,7 +852,7 @@ impl<'a> Prepared<'a> {
                 continue;
             }
             stats.pieces += 1;
-            let mean = self.piece_colour(piece, d, &mut work.cuts, tile.unshadowed, stats);
+            let mean = self.piece_colour(piece, d, &mut work.cuts, tile, stats);
             for c in 0..3 {
                 sum[c] += m * mean[c];
             }
@@ -994,76 +1009,90 @@ impl<'a> Prepared<'a> {
         (weight > 0.0).then(|| sum.map(|c| c / weight))
     }
 
-    /// The irradiance of a still receiver (its `normal` and `point`, on triangle `own`) over
-    /// `span`, where no shadow map can darken it: each shadowing light faces away from it or
-    /// lights it for sure. `None` where one may shadow it.
-    fn surely_lit_irradiance(
+    /// The mean irradiance over `span` of a still receiver (its `normal` and `point`, on
+    /// triangle `own`), weighted by the shutter. A shadow map whose light faces away from it, or
+    /// that holds no nearer occluder in its texels over the span (`unshadowed` for the whole
+    /// tile, else [`ShadowMap::surely_lit`]), leaves it lit; the others give the mean share of
+    /// their light over the span in closed form ([`ShadowMap::mean_visibility`]), and light is
+    /// linear in it.
+    fn still_irradiance(
         &self,
         (normal, point): (DVec3, DVec3),
         span: [f64; 2],
         own: (u32, u32),
         unshadowed: [bool; MAX_SHADOWED_LIGHTS],
-    ) -> Option<f64> {
-        let mut maps = self.shadows.iter().zip(unshadowed);
+    ) -> f64 {
+        let receiver = Receiver {
+            path: [point; 2],
+            normal,
+            span,
+            own,
+        };
+        let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
+        let mut maps = self.shadows.iter().zip(unshadowed).zip(&mut visibility);
         for source in self.sources.iter().filter(|source| source.shadows()) {
-            let (map, unshadowed) = maps.next()?;
-            let away = normal.dot(source.towards(point)) <= 0.0;
-            let receiver = Receiver {
-                path: [point; 2],
-                normal,
-                span,
-                own,
+            let Some(((map, unshadowed), visibility)) = maps.next() else {
+                break;
             };
-            if !(away || unshadowed || map.surely_lit(&receiver)) {
-                return None;
+            let away = || normal.dot(source.towards(point)) <= 0.0;
+            if unshadowed || away() || map.surely_lit(&receiver) {
+                continue;
+            }
+            // Behind its light a point takes no shadow from it.
+            if let Some(placed) = map.place(point, normal) {
+                *visibility = map.mean_visibility(placed, span, own, &self.scene.shutter);
             }
         }
-        Some(self.irradiance(normal, point, &[1.0; MAX_SHADOWED_LIGHTS]))
+        self.irradiance(normal, point, &visibility)
     }
 
-    /// Mean colour of a visible piece, weighted by the shutter. The piece is cut where the
-    /// surface turns towards or away from a light (eq. 2.5: N·L, quadratic in time, through its
-    /// values at the piece's ends and middle) and where a shadow can start or end (exact for a
-    /// receiver within one texel footprint, [`ShadowMap::breakpoints`]; for one sweeping texels,
-    /// max(2|pₑ − pₛ|, 5) equal cuts, or with `Receivers::Traced` the cuts of
-    /// [`ShadowMap::traced_breakpoints`]); visibility is taken at each cut piece's middle and the
-    /// rest integrated at three Gauss–Legendre times.
+    /// Mean colour of a visible piece, weighted by the shutter. A still triangle's piece is shaded
+    /// once, its shadows in closed form ([`Prepared::still_irradiance`]; a plain face's surface
+    /// from the tile's copy of its plane). A moving one is cut where the surface turns towards or
+    /// away from a light (eq. 2.5: N·L, quadratic in time, through its values at the piece's ends
+    /// and middle) and where a shadow can start or end (exact for a receiver within one texel
+    /// footprint, [`ShadowMap::breakpoints`]; for one sweeping texels, max(2|pₑ − pₛ|, 5) equal
+    /// cuts, or with `Receivers::Traced` the cuts of [`ShadowMap::traced_breakpoints`]);
+    /// visibility is taken at each cut piece's middle and the rest integrated at three
+    /// Gauss–Legendre times.
     fn piece_colour(
         &self,
         piece: &Interval,
         d: DVec3,
         cuts: &mut Vec<f64>,
-        unshadowed: [bool; MAX_SHADOWED_LIGHTS],
+        tile: &TileShared,
         stats: &mut TriangleStats,
     ) -> [f64; 3] {
         let item = &self.items[piece.item as usize];
-        let triangle = self.corners(item);
         let segment = self.segment(item);
         let [t0, t1] = segment.time;
         let fraction = |t: f64| if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-        if segment.still && self.shadows.is_empty() {
-            return self.shade(item, &triangle, d, 0.0, segment.time[0]);
-        }
         let span = piece.t;
         let own = self.shadow_id(item);
+        if segment.still {
+            // A plain face's surface from the tile's copy of its plane and shading.
+            let plain = tile
+                .of(piece.item)
+                .and_then(|entry| Some((entry.depth.hit_at_start(d), entry.plain?)));
+            let (surface, albedo) = match plain {
+                Some((hit, face)) => (self.oriented(&hit, d, 0.0, face.normals), face.albedo),
+                None => {
+                    let hit = self.hit(item, &self.corners(item), d, 0.0);
+                    (
+                        self.surface_with(item, &hit, d, 0.0),
+                        self.albedo_with(item, hit.weights),
+                    )
+                }
+            };
+            let irradiance = self.still_irradiance(surface, span, own, tile.unshadowed);
+            return albedo.map(|c| c * irradiance);
+        }
+        let triangle = self.corners(item);
         // The receiver between the piece's ends: its point and normal interpolated linearly in
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
-        let first = self.hit(item, &triangle, d, fraction(span[0]));
-        let start = self.surface_with(item, &first, d, fraction(span[0]));
-        if segment.still {
-            if let Some(irradiance) = self.surely_lit_irradiance(start, span, own, unshadowed) {
-                return self
-                    .albedo_with(item, first.weights)
-                    .map(|c| c * irradiance);
-            }
-        }
-        let ends = if segment.still {
-            [start; 2]
-        } else {
-            [start, self.surface(item, &triangle, d, fraction(span[1]))]
-        };
+        let ends = span.map(|t| self.surface(item, &triangle, d, fraction(t)));
         let surface_at = |t: f64| {
             let u = if span[1] > span[0] {
                 (t - span[0]) / (span[1] - span[0])
@@ -1088,19 +1117,19 @@ impl<'a> Prepared<'a> {
         // from its light all along, or is lit all along.
         let mut surely_lit = [true; MAX_SHADOWED_LIGHTS];
         if self.scene.lighting.is_lit() {
-            let mut maps = self.shadows.iter().zip(unshadowed).zip(&mut surely_lit);
+            let mut maps = self
+                .shadows
+                .iter()
+                .zip(tile.unshadowed)
+                .zip(&mut surely_lit);
             for source in &self.sources {
                 let facing = |t: f64| {
                     let (normal, p) = surface_at(t);
                     normal.dot(source.towards(p))
                 };
-                let away = if segment.still {
-                    facing(span[0]) <= 0.0
-                } else {
-                    let middle = 0.5 * (span[0] + span[1]);
-                    let values = [facing(span[0]), facing(middle), facing(span[1])];
-                    cut_where_turning(values, span, cuts)
-                };
+                let middle = 0.5 * (span[0] + span[1]);
+                let values = [facing(span[0]), facing(middle), facing(span[1])];
+                let away = cut_where_turning(values, span, cuts);
                 if source.shadows() {
                     if let Some(((map, unshadowed), lit)) = maps.next() {
                         *lit = away || unshadowed || map.surely_lit(&receiver);
@@ -1146,25 +1175,7 @@ impl<'a> Prepared<'a> {
             }
             visibility
         };
-        if segment.still {
-            // Nothing but the shadows changes: shade once, weigh each cut piece's light by its
-            // shutter mass.
-            let (normal, p) = ends[0];
-            let albedo = self.albedo_with(item, first.weights);
-            let (mut sum, mut mass) = (0.0, 0.0);
-            for pair in cuts.windows(2) {
-                let m = self.scene.shutter.mass(pair[0], pair[1]);
-                sum += m * self.irradiance(normal, p, &visibility_at(0.5 * (pair[0] + pair[1])));
-                mass += m;
-            }
-            let irradiance = if mass > 0.0 {
-                sum / mass
-            } else {
-                self.irradiance(normal, p, &visibility_at(span[0]))
-            };
-            return albedo.map(|c| c * irradiance);
-        }
-        // Cut pieces with exact ends (turning, a static receiver's shadow edges) are integrated
+        // Cut pieces with exact ends (turning, shadow edges within one texel) are integrated
         // at three Gauss–Legendre times each; a receiver point-sampled across texels by their
         // middles, which is the point sampling itself.
         if point_sampled {
@@ -1223,7 +1234,7 @@ impl<'a> Prepared<'a> {
             out.push(*interval);
             return;
         };
-        let tolerance = tct::DEPTH_TOLERANCE_PX / self.camera.focal_px;
+        let tolerance = self.depth_tolerance;
         let first = out.len();
         let cut = depth_pieces(&along, span, time, interval.item, tolerance, &mut |p| {
             out.push(p);
@@ -1882,7 +1893,6 @@ impl Scratch {
         stats: &mut TriangleStats,
     ) {
         let Placed {
-            triangle,
             edges,
             window,
             time: [t0, t1],
@@ -1897,7 +1907,7 @@ impl Scratch {
             // What the edge quadratics and depth pieces below give when nothing moves.
             if let Some(z) = edges
                 .inside_at_start(d)
-                .then(|| triangle.depth(d, 0.0))
+                .then(|| placed.depth.hit_at_start(d).depth)
                 .flatten()
             {
                 if placed.all_along {
@@ -1920,7 +1930,7 @@ impl Scratch {
         for k in 0..self.covered.len() {
             let span = self.covered[k];
             self.pieces.clear();
-            let tolerance = tct::DEPTH_TOLERANCE_PX / placed.focal_px;
+            let tolerance = placed.depth_tolerance;
             let cut = match depth {
                 DepthPieces::AtOnce => {
                     let pieces = &mut self.pieces;

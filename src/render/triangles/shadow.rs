@@ -20,13 +20,19 @@ use rayon::prelude::*;
 use super::intervals::Interval;
 use crate::math::floor_to_i64;
 use crate::plan::Plan;
-use crate::scene::{Camera, LightSource, Scene};
+use crate::scene::{Camera, LightSource, Scene, Shutter};
 
 /// Depth bias against self-shadowing, in texel widths at the receiver's depth, times
 /// 1 + tan of the angle between the receiver's normal and the light (capped at
 /// [`MAX_BIAS_SLOPE`]): a surface lit at a grazing angle changes depth fast across a texel, and
 /// its neighbouring triangles would shadow it.
 pub const BIAS_TEXELS: f64 = 2.0;
+
+/// How far an occluder's linear depth pieces may stray from its exact depth, in texel widths at
+/// that depth: half the least bias, so that a receiver the bias keeps from shadowing itself
+/// stays clear by at least as much again. The image's own pieces follow the depth four times
+/// as closely ([`super::tct::DEPTH_TOLERANCE_PX`]), where they decide which surface is seen.
+pub const DEPTH_TOLERANCE_TEXELS: f64 = 0.5 * BIAS_TEXELS;
 
 /// Largest slope factor of the bias.
 pub const MAX_BIAS_SLOPE: f64 = 20.0;
@@ -508,12 +514,18 @@ impl ShadowMap {
 
     /// The depth bias at light depth `depth` for a receiver at `p` with unit `normal`.
     fn bias(&self, depth: f64, p: DVec3, normal: DVec3) -> f64 {
+        self.bias_slope(p, normal) * depth / self.occluders.camera.focal_px
+    }
+
+    /// [`BIAS_TEXELS`] times the slope factor of the bias for a receiver at `p` with unit
+    /// `normal`: the bias at depth z is this × z / focal length, in that order of operations.
+    fn bias_slope(&self, p: DVec3, normal: DVec3) -> f64 {
         let cos = normal
             .dot((self.occluders.camera.eye - p).normalize_or_zero())
             .abs()
             .max(1e-9);
         let slope = ((1.0 - cos * cos).max(0.0).sqrt() / cos).min(MAX_BIAS_SLOPE);
-        BIAS_TEXELS * (1.0 + slope) * depth / self.occluders.camera.focal_px
+        BIAS_TEXELS * (1.0 + slope)
     }
 
     /// The four texels of a bilinear lookup at texel coordinates `at`, with their weights.
@@ -532,10 +544,14 @@ impl ShadowMap {
     /// four texels), for a receiver on triangle `own`.
     #[must_use]
     pub fn visibility(&self, p: DVec3, normal: DVec3, t: f64, own: (u32, u32)) -> f64 {
-        let Some((at, depth)) = self.locate(p) else {
-            return 1.0;
-        };
-        let limit = depth - self.bias(depth, p, normal);
+        self.place(p, normal)
+            .map_or(1.0, |placed| self.visibility_placed(placed, t, own))
+    }
+
+    /// [`ShadowMap::visibility`] of a receiver point placed by [`ShadowMap::place`]: a still
+    /// receiver is placed once for all its times.
+    #[must_use]
+    pub fn visibility_placed(&self, (at, limit): (DVec2, f64), t: f64, own: (u32, u32)) -> f64 {
         Self::footprint(at)
             .iter()
             .filter(|(_, w)| *w > 0.0)
@@ -654,46 +670,107 @@ impl ShadowMap {
             span: [t0, t1],
             ..
         } = *receiver;
-        let (Some((_, d0)), Some((_, d1)), Some((middle, _))) = (
-            self.locate(p0),
-            self.locate(p1),
-            self.locate(p0.lerp(p1, 0.5)),
-        ) else {
+        // A still receiver is one point: located once.
+        let start = self.locate(p0);
+        let (end, middle) = if p0 == p1 {
+            (start, start)
+        } else {
+            (self.locate(p1), self.locate(p0.lerp(p1, 0.5)))
+        };
+        let (Some((_, d0)), Some((_, d1)), Some((middle, _))) = (start, end, middle) else {
             return;
         };
+        let (slope, focal) = (self.bias_slope(p0, normal), self.occluders.camera.focal_px);
         let limit = |t: f64| {
             let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
-            depth - self.bias(depth, p0, normal)
+            depth - slope * depth / focal
         };
         // The footprint of the middle: a traced receiver's piece starts on a grid line.
         for ((x, y), _) in Self::footprint(middle) {
-            let mut run: Option<[f64; 2]> = None;
-            for (o, [a0, a1]) in self.others_during(x, y, receiver.span, receiver.own) {
-                // The part of [a0, a1] where the occluder is nearer than the limit.
-                let g0 = o.piece.depth_at(a0) - limit(a0);
-                let g1 = o.piece.depth_at(a1) - limit(a1);
-                let cross = || a0 + (a1 - a0) * g0 / (g0 - g1);
-                let part = match (g0 < 0.0, g1 < 0.0) {
-                    (true, true) => Some([a0, a1]),
-                    (true, false) => Some([a0, cross()]),
-                    (false, true) => Some([cross(), a1]),
-                    (false, false) => None,
-                };
-                let Some([s0, s1]) = part else {
-                    continue;
-                };
-                run = match run {
-                    Some([r0, r1]) if s0 <= r1 => Some([r0, r1.max(s1)]),
-                    Some(done) => {
-                        out.extend(done.into_iter().filter(|&t| t > t0 && t < t1));
-                        Some([s0, s1])
-                    }
-                    None => Some([s0, s1]),
-                };
-            }
-            if let Some(done) = run {
-                out.extend(done.into_iter().filter(|&t| t > t0 && t < t1));
-            }
+            self.occluded_runs(x, y, receiver.span, receiver.own, limit, |run| {
+                out.extend(run.into_iter().filter(|&t| t > t0 && t < t1));
+            });
+        }
+    }
+
+    /// The shutter-weighted mean share of light reaching a still receiver on triangle `own`,
+    /// placed by [`ShadowMap::place`], over `span`: bilinear over its four texels, each lit
+    /// except during its runs of nearer occluders ([`ShadowMap::occluded_runs`], exact). Light
+    /// is linear in visibility, so this mean times a light's irradiance is the light's mean;
+    /// no time needs to be cut or sampled.
+    #[must_use]
+    pub fn mean_visibility(
+        &self,
+        (at, limit): (DVec2, f64),
+        span: [f64; 2],
+        own: (u32, u32),
+        shutter: &Shutter,
+    ) -> f64 {
+        let mass = shutter.mass(span[0], span[1]);
+        if !(mass > 0.0) {
+            return self.visibility_placed((at, limit), span[0], own);
+        }
+        Self::footprint(at)
+            .iter()
+            .filter(|(_, w)| *w > 0.0)
+            .map(|&((x, y), w)| {
+                let mut occluded = 0.0;
+                self.occluded_runs(
+                    x,
+                    y,
+                    span,
+                    own,
+                    |_| limit,
+                    |[r0, r1]| {
+                        occluded += shutter.mass(r0, r1);
+                    },
+                );
+                w * (1.0 - (occluded / mass).min(1.0))
+            })
+            .sum()
+    }
+
+    /// The runs of time within `span`, in order and apart, during which texel (x, y) holds an
+    /// occluder of another triangle than `own` nearer than `limit` at that time (the receiver's
+    /// depth less its bias, linear in time), each handed to `run`. Within an occluder piece both
+    /// depths are linear in time, so the part of it that occludes is one interval, found
+    /// exactly; touching parts merge, so a long train of occluder pieces (a surface turning over
+    /// the texel) is one run.
+    fn occluded_runs(
+        &self,
+        x: i64,
+        y: i64,
+        span: [f64; 2],
+        own: (u32, u32),
+        limit: impl Fn(f64) -> f64,
+        mut run: impl FnMut([f64; 2]),
+    ) {
+        let mut open: Option<[f64; 2]> = None;
+        for (o, [a0, a1]) in self.others_during(x, y, span, own) {
+            // The part of [a0, a1] where the occluder is nearer than the limit.
+            let g0 = o.piece.depth_at(a0) - limit(a0);
+            let g1 = o.piece.depth_at(a1) - limit(a1);
+            let cross = || a0 + (a1 - a0) * g0 / (g0 - g1);
+            let part = match (g0 < 0.0, g1 < 0.0) {
+                (true, true) => Some([a0, a1]),
+                (true, false) => Some([a0, cross()]),
+                (false, true) => Some([cross(), a1]),
+                (false, false) => None,
+            };
+            let Some([s0, s1]) = part else {
+                continue;
+            };
+            open = match open {
+                Some([r0, r1]) if s0 <= r1 => Some([r0, r1.max(s1)]),
+                Some(done) => {
+                    run(done);
+                    Some([s0, s1])
+                }
+                None => Some([s0, s1]),
+            };
+        }
+        if let Some(done) = open {
+            run(done);
         }
     }
 }
@@ -701,6 +778,7 @@ impl ShadowMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::ShutterShape;
 
     /// A 16 × 16 map looking down −z from the origin, with one occluder piece at depth 1 in
     /// texel (8, 8) while t is in [0.6, 0.8], belonging to triangle (1, 0).
@@ -828,6 +906,44 @@ mod tests {
         // A path along row 3 reads rows 3 and 4 only.
         let path = [point(&map, 1.2, 3.4), point(&map, 14.6, 3.4)];
         assert!(map.surely_lit(&receiver(path, [0.0, 1.0], (0, 0))));
+    }
+
+    /// A still receiver's mean light in closed form against the shutter-weighted visibility of
+    /// its instants: the occluder covers texel (8, 8) during [0.6, 0.8].
+    #[test]
+    fn a_still_receivers_mean_visibility_is_its_lit_share_of_the_shutter() {
+        let map = map_with_one_occluder();
+        let mean = |x: f64, span: [f64; 2], own: (u32, u32), shutter: &Shutter| {
+            let p = point(&map, x, 8.0);
+            let placed = map.place(p, DVec3::Z).unwrap();
+            map.mean_visibility(placed, span, own, shutter)
+        };
+        let open = Shutter::new(0.0, 1.0, ShutterShape::Box).unwrap();
+        // On the texel's centre: lit but for a fifth of the exposure; a quarter texel aside, a
+        // quarter of the lookup reads its lit neighbour.
+        assert!((mean(8.0, [0.0, 1.0], (0, 0), &open) - 0.8).abs() < 1e-12);
+        assert!((mean(8.25, [0.0, 1.0], (0, 0), &open) - 0.85).abs() < 1e-12);
+        // Over part of the exposure, by its own triangle, and at an instant.
+        assert!((mean(8.0, [0.5, 0.7], (0, 0), &open) - 0.5).abs() < 1e-12);
+        assert_eq!(mean(8.0, [0.0, 1.0], (1, 0), &open), 1.0);
+        assert_eq!(mean(8.0, [0.7, 0.7], (0, 0), &open), 0.0);
+        // Under a tent shutter and a Gaussian one, against the shutter-weighted mean of
+        // visibility at 20,000 instants.
+        for shape in [ShutterShape::Tent, ShutterShape::Gaussian] {
+            let shutter = Shutter::new(0.0, 1.0, shape).unwrap();
+            let placed = map.place(point(&map, 8.25, 8.0), DVec3::Z).unwrap();
+            let n = 20_000;
+            let (mut sum, mut weight) = (0.0, 0.0);
+            for i in 0..n {
+                let t = (f64::from(i) + 0.5) / f64::from(n);
+                let w = shutter.weight(t);
+                sum += w * map.visibility_placed(placed, t, (0, 0));
+                weight += w;
+            }
+            let closed = mean(8.25, [0.0, 1.0], (0, 0), &shutter);
+            assert!((closed - sum / weight).abs() < 1e-4, "{shape:?}: {closed}");
+            assert!(closed > 0.75 && closed < 1.0, "{shape:?}: {closed}");
+        }
     }
 
     #[test]

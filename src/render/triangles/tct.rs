@@ -13,10 +13,10 @@ use glam::DVec3;
 /// Most pieces a covered interval's depth is cut into where a line does not follow it.
 pub const MAX_DEPTH_PIECES: usize = 16;
 
-/// A linear depth piece may stray from the exact depth at its middle by this many pixel widths
-/// at that depth (depth / focal length in px) before it is halved (Palmér §5, "Adaptive depth
-/// sampling"): a quarter pixel keeps depth errors below a shadow map's bias and, in the image,
-/// at 6·10⁻⁴ of the depth for a 400 px focal length.
+/// A linear depth piece in the image may stray from the exact depth at its middle by this many
+/// pixel widths at that depth (depth / focal length in px) before it is halved (Palmér §5,
+/// "Adaptive depth sampling"): 6·10⁻⁴ of the depth for a 400 px focal length. Shadow maps
+/// follow their own, looser [`super::shadow::DEPTH_TOLERANCE_TEXELS`].
 pub const DEPTH_TOLERANCE_PX: f64 = 0.25;
 
 /// Where a ray meets a triangle's plane at one time.
@@ -231,6 +231,19 @@ impl DepthFunction {
         RayDepth {
             numerator: self.offset,
             denominator: self.normal.map(|n| n.dot(d)),
+        }
+    }
+
+    /// Where the ray `d` meets the plane at s = 0, as [`MovingTriangle::plane_hit`] finds it
+    /// (the same bits): all a still triangle needs, without its corners.
+    #[must_use]
+    pub fn hit_at_start(&self, d: DVec3) -> RayHit {
+        let facing = d.dot(self.normal[0]);
+        let depth = self.offset[0] / facing;
+        RayHit {
+            weights: [1.0 / 3.0; 3],
+            depth: (depth.is_finite() && depth > 0.0).then_some(depth),
+            back: facing > 0.0,
         }
     }
 }
@@ -602,6 +615,51 @@ mod tests {
             triangle.depth_function().along(d).plane_hit(0.5).back,
             flipped.depth_function().along(d).plane_hit(0.5).back
         );
+    }
+
+    /// A still face's samples are inserted and shaded from its depth function alone; the image
+    /// must not change by a bit against its corners' hit, on either side of the plane and where
+    /// the ray misses it edge-on or behind.
+    #[test]
+    fn the_hit_at_the_start_is_the_corners_plane_hit_to_the_bit() {
+        let triangle = turning_in_depth();
+        let flipped = MovingTriangle {
+            start: [2, 1, 0].map(|k| triangle.start[k]),
+            delta: [2, 1, 0].map(|k| triangle.delta[k]),
+        };
+        let mut sides = [0, 0];
+        for triangle in [triangle, flipped] {
+            let function = triangle.depth_function();
+            for (x, y) in [
+                (0.0, 0.0),
+                (0.05, 0.1),
+                (-0.1, -0.05),
+                (2.0, 3.0),
+                (-7.0, 0.3),
+            ] {
+                let d = DVec3::new(x, y, -1.0);
+                let (corners, plane) = (triangle.plane_hit(d, 0.0), function.hit_at_start(d));
+                assert_eq!(corners.back, plane.back, "{d}");
+                assert_eq!(
+                    corners.depth.map(f64::to_bits),
+                    plane.depth.map(f64::to_bits),
+                    "{d}"
+                );
+                sides[usize::from(plane.back)] += 1;
+            }
+        }
+        assert_eq!(sides, [5, 5], "both sides are met");
+        // A ray along the plane meets it nowhere, from the corners and from the function.
+        let [a, b, c] = triangle.start;
+        let along_plane = (b - a).lerp(c - a, 0.5);
+        let d = along_plane / -along_plane.z;
+        assert_eq!(triangle.plane_hit(d, 0.0).depth.map(f64::to_bits), {
+            triangle
+                .depth_function()
+                .hit_at_start(d)
+                .depth
+                .map(f64::to_bits)
+        });
     }
 
     #[test]
