@@ -1074,18 +1074,13 @@ impl<'a> Prepared<'a> {
             let plain = tile
                 .of(piece.item)
                 .and_then(|entry| Some((entry.depth.hit_at_start(d), entry.plain?)));
-            let (surface, albedo) = match plain {
-                Some((hit, face)) => (self.oriented(&hit, d, 0.0, face.normals), face.albedo),
-                None => {
-                    let hit = self.hit(item, &self.corners(item), d, 0.0);
-                    (
-                        self.surface_with(item, &hit, d, 0.0),
-                        self.albedo_with(item, hit.weights),
-                    )
-                }
+            let surface = match plain {
+                Some((hit, face)) => self.plain_surface_point(&hit, d, 0.0, &face),
+                None => self.surface_point(item, &self.corners(item), d, 0.0),
             };
-            let irradiance = self.still_irradiance(surface, span, own, tile.unshadowed);
-            return albedo.map(|c| c * irradiance);
+            let irradiance =
+                self.still_irradiance((surface.normal, surface.point), span, own, tile.unshadowed);
+            return surface.albedo.map(|c| c * irradiance);
         }
         let triangle = self.corners(item);
         // The receiver between the piece's ends: its point and normal interpolated linearly in
@@ -1324,25 +1319,49 @@ impl<'a> Prepared<'a> {
         let mut triangle = None;
         for &t in times {
             let s = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-            let ((normal, point), albedo) = match &plain {
-                Some((plane, face)) => (
-                    self.oriented(&plane.plane_hit(s), d, s, face.normals),
-                    face.albedo,
-                ),
+            out.push(match &plain {
+                Some((plane, face)) => self.plain_surface_point(&plane.plane_hit(s), d, s, face),
                 None => {
                     let triangle = triangle.get_or_insert_with(|| self.corners(item));
-                    let hit = self.hit(item, triangle, d, s);
-                    (
-                        self.surface_with(item, &hit, d, s),
-                        self.albedo_with(item, hit.weights),
-                    )
+                    self.surface_point(item, triangle, d, s)
                 }
-            };
-            out.push(SurfacePoint {
-                normal,
-                point,
-                albedo,
             });
+        }
+    }
+
+    /// The surface (shading normal, world point, colour) where the ray `d` meets `item`, as
+    /// `triangle`, at segment fraction `s`: [`Prepared::surface`] and [`Prepared::albedo`] from
+    /// one hit.
+    fn surface_point(
+        &self,
+        item: &Item,
+        triangle: &MovingTriangle,
+        d: DVec3,
+        s: f64,
+    ) -> SurfacePoint {
+        let hit = self.hit(item, triangle, d, s);
+        let (normal, point) = self.surface_with(item, &hit, d, s);
+        SurfacePoint {
+            normal,
+            point,
+            albedo: self.albedo_with(item, hit.weights),
+        }
+    }
+
+    /// The surface where the ray `d` meets a plain item at segment fraction `s`, at `hit`, from
+    /// its tile's copy of its shading `face`.
+    fn plain_surface_point(
+        &self,
+        hit: &RayHit,
+        d: DVec3,
+        s: f64,
+        face: &PlainFace,
+    ) -> SurfacePoint {
+        let (normal, point) = self.oriented(hit, d, s, face.normals);
+        SurfacePoint {
+            normal,
+            point,
+            albedo: face.albedo,
         }
     }
 
@@ -1383,11 +1402,14 @@ impl<'a> Prepared<'a> {
     /// of that instant: corner colours and normals interpolated perspective-correctly, Lambert
     /// shading.
     fn shade(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64, t: f64) -> [f64; 3] {
-        let albedo = self.albedo(item, triangle, d, s);
         if !self.scene.lighting.is_lit() {
-            return albedo;
+            return self.albedo(item, triangle, d, s);
         }
-        let (normal, p) = self.surface(item, triangle, d, s);
+        let SurfacePoint {
+            normal,
+            point: p,
+            albedo,
+        } = self.surface_point(item, triangle, d, s);
         let own = self.shadow_id(item);
         let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
         for (v, map) in visibility.iter_mut().zip(&self.shadows) {

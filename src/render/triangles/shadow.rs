@@ -352,7 +352,7 @@ impl ShadowMap {
     #[must_use]
     pub fn place(&self, p: DVec3, normal: DVec3) -> Option<(DVec2, f64)> {
         let (at, depth) = self.locate(p)?;
-        Some((at, depth - self.bias(depth, p, normal)))
+        Some((at, depth - self.bias(depth, self.bias_slope(p, normal))))
     }
 
     /// [`ShadowMap::surely_lit`] for a receiver on triangle `own` moving over `span` between two
@@ -512,13 +512,14 @@ impl ShadowMap {
         (self.tile_of(x, y), ((y - y0) * w + (x - x0)) as usize)
     }
 
-    /// The depth bias at light depth `depth` for a receiver at `p` with unit `normal`.
-    fn bias(&self, depth: f64, p: DVec3, normal: DVec3) -> f64 {
-        self.bias_slope(p, normal) * depth / self.occluders.camera.focal_px
+    /// The depth bias at light depth `depth` for a receiver whose [`ShadowMap::bias_slope`] is
+    /// `slope`.
+    fn bias(&self, depth: f64, slope: f64) -> f64 {
+        slope * depth / self.occluders.camera.focal_px
     }
 
     /// [`BIAS_TEXELS`] times the slope factor of the bias for a receiver at `p` with unit
-    /// `normal`: the bias at depth z is this × z / focal length, in that order of operations.
+    /// `normal`, the same at every depth ([`ShadowMap::bias`]).
     fn bias_slope(&self, p: DVec3, normal: DVec3) -> f64 {
         let cos = normal
             .dot((self.occluders.camera.eye - p).normalize_or_zero())
@@ -680,10 +681,10 @@ impl ShadowMap {
         let (Some((_, d0)), Some((_, d1)), Some((middle, _))) = (start, end, middle) else {
             return;
         };
-        let (slope, focal) = (self.bias_slope(p0, normal), self.occluders.camera.focal_px);
+        let slope = self.bias_slope(p0, normal);
         let limit = |t: f64| {
             let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
-            depth - slope * depth / focal
+            depth - self.bias(depth, slope)
         };
         // The footprint of the middle: a traced receiver's piece starts on a grid line.
         for ((x, y), _) in Self::footprint(middle) {
