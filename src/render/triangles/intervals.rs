@@ -50,68 +50,243 @@ pub struct ResolveScratch {
     by_start: Vec<u32>,
     active: Vec<u32>,
     pieces: Vec<Interval>,
+    ranges: Vec<Option<Option<[f64; 2]>>>,
+    layers: Vec<Layer>,
+    shown: Vec<(u32, [f64; 2])>,
 }
 
-/// A list's interval as it is: for lists whose depths are already linear pieces.
-pub fn as_is(interval: &Interval, out: &mut Vec<Interval>) {
-    out.push(*interval);
+/// Where an interval lies in depth against the intervals it overlaps in time, by their depth
+/// bounds, when a list is made of two layers ([`two_layers`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Layer {
+    /// It overlaps nothing.
+    Alone,
+    /// Nearer than all it overlaps: seen all along.
+    Front,
+    /// Farther than all it overlaps: seen where none of them is.
+    Behind,
+}
+
+/// Whether `intervals` form two layers: no instant within three of them, and of every two that
+/// overlap, one lies wholly nearer by their depth bounds (`depth`'s where they bend, their lines'
+/// ends where not, worked out into `ranges` when first asked for). Then each one's [`Layer`] is
+/// in `layers`. `by_start` orders the intervals by start time.
+fn two_layers(
+    intervals: &[Interval],
+    by_start: &[u32],
+    depth: &impl BentDepth,
+    ranges: &mut Vec<Option<Option<[f64; 2]>>>,
+    layers: &mut Vec<Layer>,
+) -> bool {
+    ranges.clear();
+    ranges.resize(intervals.len(), None);
+    let mut range = |k: usize| {
+        *ranges[k].get_or_insert_with(|| {
+            let [a, b] = intervals[k].depth;
+            if intervals[k].bends {
+                depth.bounds(&intervals[k])
+            } else {
+                Some([a.min(b), a.max(b)])
+            }
+        })
+    };
+    layers.clear();
+    layers.resize(intervals.len(), Layer::Alone);
+    let mut set = |k: usize, layer: Layer| {
+        let ok = layers[k] == Layer::Alone || layers[k] == layer;
+        layers[k] = layer;
+        ok
+    };
+    // The intervals still open where the next one starts: with two, it would make a third.
+    let mut open: [Option<usize>; 2] = [None; 2];
+    for &n in by_start {
+        let n = n as usize;
+        let [t0, t1] = intervals[n].t;
+        if !(t1 > t0) {
+            continue;
+        }
+        for slot in &mut open {
+            *slot = slot.filter(|&o| intervals[o].t[1] > t0);
+        }
+        match open {
+            [Some(_), Some(_)] => return false,
+            [Some(o), None] | [None, Some(o)] => {
+                let (Some([near_o, far_o]), Some([near_n, far_n])) = (range(o), range(n)) else {
+                    return false;
+                };
+                let (front, behind) = if far_o < near_n {
+                    (o, n)
+                } else if far_n < near_o {
+                    (n, o)
+                } else {
+                    return false;
+                };
+                if !(set(front, Layer::Front) && set(behind, Layer::Behind)) {
+                    return false;
+                }
+                open = [Some(o), Some(n)];
+            }
+            [None, None] => open = [Some(n), None],
+        }
+    }
+    layers
+        .iter()
+        .zip(intervals)
+        .all(|(layer, i)| *layer != Layer::Behind || !i.bends)
+}
+
+/// The visible pieces of `intervals` in two layers ([`two_layers`]), appended to `out` as
+/// [`resolve`] appends them: each front interval whole, each one behind (a line) where no front
+/// one covers its time. Fronts overlap no front, nor those behind one another, since each pair
+/// that overlaps is one nearer than the other.
+fn resolve_layers(
+    intervals: &[Interval],
+    layers: &[Layer],
+    shown: &mut Vec<(u32, [f64; 2])>,
+    out: &mut Vec<Interval>,
+) {
+    shown.clear();
+    for (k, (interval, layer)) in intervals.iter().zip(layers).enumerate() {
+        if *layer != Layer::Behind && interval.t[1] > interval.t[0] {
+            shown.push((k as u32, interval.t));
+        }
+    }
+    shown.sort_unstable_by(|a, b| a.1[0].total_cmp(&b.1[0]));
+    let fronts = shown.len();
+    for (k, (interval, layer)) in intervals.iter().zip(layers).enumerate() {
+        if *layer != Layer::Behind {
+            continue;
+        }
+        let [mut from, to] = interval.t;
+        for f in 0..fronts {
+            let [f0, f1] = shown[f].1;
+            if f1 <= from || f0 >= to {
+                continue;
+            }
+            if f0 > from {
+                shown.push((k as u32, [from, f0]));
+            }
+            from = from.max(f1);
+        }
+        if to > from {
+            shown.push((k as u32, [from, to]));
+        }
+    }
+    shown.sort_unstable_by(|a, b| a.1[0].total_cmp(&b.1[0]));
+    let first = out.len();
+    for &(k, span) in shown.iter() {
+        push_visible(out, first, &intervals[k as usize], span);
+    }
+}
+
+/// What [`resolve`] needs of the intervals whose depth bends ([`Interval::bends`]).
+pub trait BentDepth {
+    /// The linear depth pieces of `interval`, appended to `out` in time order.
+    fn pieces(&self, interval: &Interval, out: &mut Vec<Interval>);
+    /// Bounds [nearest, farthest] on the depth of `interval` over its span, its ends included;
+    /// `None` where none can be had.
+    fn bounds(&self, interval: &Interval) -> Option<[f64; 2]>;
+}
+
+/// For lists whose depths are already linear pieces: nothing bends.
+pub struct AsIs;
+
+impl BentDepth for AsIs {
+    fn pieces(&self, interval: &Interval, out: &mut Vec<Interval>) {
+        out.push(*interval);
+    }
+
+    fn bounds(&self, _: &Interval) -> Option<[f64; 2]> {
+        None
+    }
 }
 
 /// The visible pieces of `intervals` (each an interval over which its item is nearest), in time
 /// order, appended to `out`; adjacent pieces of the same item are joined (Gribel's compression of
-/// one surface's pieces). Where intervals overlap in time and some bend, `pieces` first cuts each
-/// into the linear depth pieces the sweep compares (a list in time order without overlaps needs
-/// no depth, and is returned as it is).
+/// one surface's pieces).
 ///
-/// The interval ends cut the exposure into spans over which the set of active pieces is fixed
-/// (kept incrementally as the sweep passes starts and ends), and each piece is a line in time:
-/// their lower envelope is found by starting from the nearest at the span's start and stepping to
-/// the earliest line that crosses below the current one, so a span with k active pieces costs
-/// O(k²) and yields at most k visible pieces.
+/// Three ways, cheapest first: a list in time order without overlaps needs no depth, and is
+/// returned as it is; a list in two layers ([`two_layers`]: a moving object over a still floor)
+/// shows its front intervals whole, whatever their depth does between its bounds, and the ones
+/// behind them where no front one is; any other list is swept ([`sweep`]), each interval that
+/// bends first cut into the linear depth pieces the sweep compares (`depth`).
 pub fn resolve(
     intervals: &[Interval],
     scratch: &mut ResolveScratch,
     out: &mut Vec<Interval>,
-    pieces: impl Fn(&Interval, &mut Vec<Interval>),
+    depth: &impl BentDepth,
 ) {
     if intervals
         .windows(2)
         .all(|pair| pair[0].t[1] <= pair[1].t[0])
     {
         // Already in time order without overlaps (one interval, or one surface's pieces over
-        // consecutive sub-segments): what the sweep below gives, without its sorting.
+        // consecutive sub-segments): what the sweep gives, without its sorting.
         let first = out.len();
         for interval in intervals.iter().filter(|i| i.t[1] > i.t[0]) {
             push_visible(out, first, interval, interval.t);
         }
         return;
     }
+    order_by_start(intervals, &mut scratch.by_start);
+    if two_layers(
+        intervals,
+        &scratch.by_start,
+        depth,
+        &mut scratch.ranges,
+        &mut scratch.layers,
+    ) {
+        resolve_layers(intervals, &scratch.layers, &mut scratch.shown, out);
+        return;
+    }
+    if intervals.iter().any(|i| i.bends) {
+        let mut cut = std::mem::take(&mut scratch.pieces);
+        cut.clear();
+        for interval in intervals {
+            if interval.bends {
+                depth.pieces(interval, &mut cut);
+            } else {
+                cut.push(*interval);
+            }
+        }
+        order_by_start(&cut, &mut scratch.by_start);
+        sweep(&cut, scratch, out);
+        scratch.pieces = cut;
+    } else {
+        sweep(intervals, scratch, out);
+    }
+}
+
+/// The indices of `intervals` in order of their start times, into `by_start`.
+fn order_by_start(intervals: &[Interval], by_start: &mut Vec<u32>) {
+    by_start.clear();
+    by_start.extend(0..intervals.len() as u32);
+    by_start.sort_unstable_by(|&a, &b| {
+        intervals[a as usize].t[0].total_cmp(&intervals[b as usize].t[0])
+    });
+}
+
+/// [`resolve`] of linear pieces (none bends) by sweeping, `scratch.by_start` their order by
+/// start time.
+///
+/// The interval ends cut the exposure into spans over which the set of active pieces is fixed
+/// (kept incrementally as the sweep passes starts and ends), and each piece is a line in time:
+/// their lower envelope is found by starting from the nearest at the span's start and stepping to
+/// the earliest line that crosses below the current one, so a span with k active pieces costs
+/// O(k²) and yields at most k visible pieces.
+fn sweep(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut Vec<Interval>) {
     let ResolveScratch {
         events,
         by_start,
         active,
-        pieces: cut,
+        ..
     } = scratch;
-    let intervals = if intervals.iter().any(|i| i.bends) {
-        cut.clear();
-        for interval in intervals {
-            pieces(interval, cut);
-        }
-        &cut[..]
-    } else {
-        intervals
-    };
     events.clear();
     for i in intervals {
         events.extend_from_slice(&i.t);
     }
     events.sort_unstable_by(f64::total_cmp);
     events.dedup();
-    by_start.clear();
-    by_start.extend(0..intervals.len() as u32);
-    by_start.sort_unstable_by(|&a, &b| {
-        intervals[a as usize].t[0].total_cmp(&intervals[b as usize].t[0])
-    });
     active.clear();
     let mut next_start = 0;
     let first_out = out.len();
@@ -215,7 +390,7 @@ mod tests {
 
     fn resolved(intervals: &[Interval]) -> Vec<Interval> {
         let mut out = Vec::new();
-        resolve(intervals, &mut ResolveScratch::default(), &mut out, as_is);
+        resolve(intervals, &mut ResolveScratch::default(), &mut out, &AsIs);
         out
     }
 
@@ -248,29 +423,149 @@ mod tests {
             bends: true,
             ..blue
         };
-        let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
-            if interval.bends {
-                for (t, depth) in [([0.0, 0.5], [1.0, 1.4]), ([0.5, 1.0], [1.4, 3.0])] {
-                    out.push(line(t, depth, interval.item));
-                }
-            } else {
-                out.push(*interval);
-            }
-        };
         let mut out = Vec::new();
         resolve(
             &[still, bent],
             &mut ResolveScratch::default(),
             &mut out,
-            pieces,
+            &BluePieces,
         );
         assert_eq!(out.len(), 3, "{out:?}");
         assert_eq!(out.iter().map(|p| p.item).collect::<Vec<_>>(), [0, 0, 1]);
         assert!((out[1].t[1] - 0.6875).abs() < 1e-12 && out[2].t == [out[1].t[1], 1.0]);
         // Alone, it overlaps nothing: no depth is compared, and it stays one line.
         out.clear();
-        resolve(&[bent], &mut ResolveScratch::default(), &mut out, pieces);
+        resolve(
+            &[bent],
+            &mut ResolveScratch::default(),
+            &mut out,
+            &BluePieces,
+        );
         assert_eq!(out, [bent]);
+    }
+
+    /// Blue's depth bending through 1.4 at t = 0.5 (its two linear pieces), bounded by [1, 3].
+    struct BluePieces;
+
+    impl BentDepth for BluePieces {
+        fn pieces(&self, interval: &Interval, out: &mut Vec<Interval>) {
+            for (t, depth) in [([0.0, 0.5], [1.0, 1.4]), ([0.5, 1.0], [1.4, 3.0])] {
+                out.push(line(t, depth, interval.item));
+            }
+        }
+
+        fn bounds(&self, _: &Interval) -> Option<[f64; 2]> {
+            Some([1.0, 3.0])
+        }
+    }
+
+    #[test]
+    fn a_bent_interval_nearer_than_all_it_overlaps_stays_whole_and_one_that_may_cross_is_cut() {
+        // Behind blue's bounds all along, a still surface at depth 3.5 is hidden while blue
+        // covers it: blue stays the one line it was given, and no piece of it is asked for.
+        let (blue, _) = blue_and_red();
+        let bent = Interval {
+            bends: true,
+            ..blue
+        };
+        let behind = line([0.2, 1.0], [3.5, 3.5], 1);
+        let mut out = Vec::new();
+        resolve(
+            &[behind, bent],
+            &mut ResolveScratch::default(),
+            &mut out,
+            &BluePieces,
+        );
+        assert_eq!(out, [bent]);
+        // At depth 3, on blue's farthest bound, it might be crossed: blue is cut, and wholly
+        // nearer than it anyway.
+        let touching = line([0.2, 1.0], [3.0, 3.0], 1);
+        out.clear();
+        resolve(
+            &[touching, bent],
+            &mut ResolveScratch::default(),
+            &mut out,
+            &BluePieces,
+        );
+        assert_eq!(out.len(), 2, "{out:?}");
+        assert_eq!((out[0].depth, out[1].depth), ([1.0, 1.4], [1.4, 3.0]));
+    }
+
+    #[test]
+    fn a_list_in_two_layers_resolves_as_the_sweep_resolves_it() {
+        // Random lists of two layers: fronts back to back or apart at depths within [1, 2],
+        // behind them lines within [3, 4]; some touch end to end, some last no time. The layers'
+        // shortcut must give the sweep's pieces exactly.
+        let mut random = crate::math::test_sequence(2010);
+        let mut layered = 0;
+        for _ in 0..500 {
+            let mut list = Vec::new();
+            for (layer, depths) in [(0, [1.0, 2.0]), (1, [3.0, 4.0])] {
+                let mut t = random() * 0.3;
+                while t < 1.0 {
+                    let end = if random() < 0.1 {
+                        t
+                    } else {
+                        t + random() * 0.4
+                    };
+                    let depth = [0, 1].map(|_| depths[0] + random() * (depths[1] - depths[0]));
+                    let item = list.len() as u32 + 100 * layer;
+                    list.push(line([t, end], depth, item));
+                    t = if random() < 0.3 {
+                        end
+                    } else {
+                        end + random() * 0.2
+                    };
+                }
+            }
+            list.sort_by_key(|_| (random() * 1e6) as u64);
+            let mut scratch = ResolveScratch::default();
+            order_by_start(&list, &mut scratch.by_start);
+            if two_layers(
+                &list,
+                &scratch.by_start,
+                &AsIs,
+                &mut scratch.ranges,
+                &mut scratch.layers,
+            ) {
+                layered += 1;
+            }
+            let mut swept = Vec::new();
+            sweep(&list, &mut scratch, &mut swept);
+            assert_eq!(resolved(&list), swept, "{list:?}");
+        }
+        // Most lists have no instant within three intervals.
+        assert!(layered > 250, "{layered}");
+    }
+
+    #[test]
+    fn three_intervals_at_one_instant_or_layers_that_meet_in_depth_are_swept() {
+        let front = line([0.0, 1.0], [1.0, 1.0], 0);
+        let behind = line([0.0, 1.0], [3.0, 3.0], 1);
+        let mut scratch = ResolveScratch::default();
+        let mut layers = |list: &[Interval]| {
+            order_by_start(list, &mut scratch.by_start);
+            two_layers(
+                list,
+                &scratch.by_start,
+                &AsIs,
+                &mut scratch.ranges,
+                &mut scratch.layers,
+            )
+        };
+        assert!(layers(&[behind, front]));
+        // A third at once: one of them could be between the others.
+        assert!(!layers(&[behind, front, line([0.4, 0.6], [2.0, 2.0], 2)]));
+        // Two whose depths' bounds meet: who is nearer changes with time.
+        assert!(!layers(&[behind, line([0.0, 1.0], [1.0, 3.0], 2)]));
+        // A bent interval without bounds cannot be placed.
+        assert!(!layers(&[
+            Interval {
+                bends: true,
+                ..front
+            },
+            behind
+        ]));
     }
 
     #[test]

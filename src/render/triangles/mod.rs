@@ -23,7 +23,7 @@ use crate::raster::TILE_PX;
 use crate::raster::{TileGrid, TileLists};
 use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMesh};
-use intervals::{as_is, resolve, Interval, ResolveScratch};
+use intervals::{resolve, AsIs, BentDepth, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
 use shadow::{Occluder, Occluders, Receiver, ShadowMap};
 use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth, RayHit};
@@ -596,11 +596,12 @@ impl<'a> Prepared<'a> {
                 }
                 let placed = self.triangle(item);
                 if cut_later {
-                    let [near, far] = depth_bounds_within(&placed, rays);
+                    let bounds @ [near, far] = depth_bounds_within(&placed, rays);
                     depth_bounds = [depth_bounds[0].min(near), depth_bounds[1].max(far)];
                     scratch.tile.push(TileItem {
                         index,
                         depth: placed.depth,
+                        bounds,
                         plain: item.plain.then(|| PlainFace {
                             normals: self.world_normals(item, [1.0 / 3.0; 3]),
                             albedo: self.albedo_with(item, [1.0 / 3.0; 3]),
@@ -671,6 +672,7 @@ impl<'a> Prepared<'a> {
             .flatten()
             .map(|corners| ScreenHull::new(&corners));
         let [nearest, _] = placed.triangle.depth_bounds();
+        let no_tile = TileShared::default();
         for y in iy0.max(y0)..iy1.min(y1) {
             let (mut from, mut to) = (ix0.max(x0), ix1.min(x1));
             if let Some(hull) = &hull {
@@ -695,10 +697,12 @@ impl<'a> Prepared<'a> {
                             }
                             // Only a full list's resolve cuts intervals here, rarely: their
                             // items' depth functions are worked out again.
-                            let pieces = |interval: &Interval, out: &mut Vec<Interval>| {
-                                self.depth_pieces_of(interval, d, &TileShared::default(), out);
+                            let along = AlongRay {
+                                prepared: self,
+                                d,
+                                tile: &no_tile,
                             };
-                            scratch.insert(sample, placed, d, index, depth, &pieces, stats);
+                            scratch.insert(sample, placed, d, index, depth, &along, stats);
                         }
                     }
                 }
@@ -769,9 +773,12 @@ impl<'a> Prepared<'a> {
                     ..
                 } = scratch;
                 visible.clear();
-                resolve(&lists[sample], resolving, visible, |interval, out| {
-                    self.depth_pieces_of(interval, d, tile, out);
-                });
+                let along = AlongRay {
+                    prepared: self,
+                    d,
+                    tile,
+                };
+                resolve(&lists[sample], resolving, visible, &along);
                 let shutter = &self.scene.shutter;
                 let mut colour = [0.0f64; 3];
                 let mut covered = 0.0;
@@ -1513,7 +1520,7 @@ impl<'a> Prepared<'a> {
                                 let Scratch {
                                     lists, resolving, ..
                                 } = scratch;
-                                resolve(&lists[texel], resolving, &mut found, as_is);
+                                resolve(&lists[texel], resolving, &mut found, &AsIs);
                             }
                         }
                         starts.push(found.len() as u32);
@@ -1759,6 +1766,25 @@ impl<'o> SampleGrid<'o> {
     }
 }
 
+/// The depth of intervals along the ray `d`, for the resolve: their items' depth functions from
+/// `tile` where it holds them.
+struct AlongRay<'r, 'a> {
+    prepared: &'r Prepared<'a>,
+    d: DVec3,
+    tile: &'r TileShared,
+}
+
+impl BentDepth for AlongRay<'_, '_> {
+    fn pieces(&self, interval: &Interval, out: &mut Vec<Interval>) {
+        self.prepared
+            .depth_pieces_of(interval, self.d, self.tile, out);
+    }
+
+    fn bounds(&self, interval: &Interval) -> Option<[f64; 2]> {
+        self.tile.of(interval.item).map(|entry| entry.bounds)
+    }
+}
+
 /// What a tile's samples share: its items, found by item index in constant time (a sample's
 /// run looks up each of its pieces' items twice), and which shadow maps shadow none of them.
 #[derive(Default)]
@@ -1802,6 +1828,8 @@ struct TileItem {
     index: u32,
     /// What a sample's interval needs to be cut into depth pieces or bounded in depth.
     depth: DepthFunction,
+    /// Bounds [nearest, farthest] on its depth at every sample of the tile and every time.
+    bounds: [f64; 2],
     /// For a plain item, its shading, the same at every sample.
     plain: Option<PlainFace>,
 }
@@ -1911,7 +1939,7 @@ impl Scratch {
         d: DVec3,
         item: u32,
         depth: DepthPieces,
-        pieces: &impl Fn(&Interval, &mut Vec<Interval>),
+        pieces: &impl BentDepth,
         stats: &mut TriangleStats,
     ) {
         let Placed {
@@ -1985,7 +2013,7 @@ impl Scratch {
         &mut self,
         sample: usize,
         interval: Interval,
-        pieces: &impl Fn(&Interval, &mut Vec<Interval>),
+        pieces: &impl BentDepth,
         stats: &mut TriangleStats,
     ) {
         if self.lists[sample].len() >= MAX_INTERVALS_PER_SAMPLE {
