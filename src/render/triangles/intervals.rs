@@ -52,7 +52,6 @@ pub struct ResolveScratch {
     pieces: Vec<Interval>,
     ranges: Vec<Option<Option<[f64; 2]>>>,
     layers: Vec<Layer>,
-    shown: Vec<(u32, [f64; 2])>,
 }
 
 /// Where an interval lies in depth against the intervals it overlaps in time, by their depth
@@ -138,44 +137,41 @@ fn two_layers(
 /// The visible pieces of `intervals` in two layers ([`two_layers`]), appended to `out` as
 /// [`resolve`] appends them: each front interval whole, each one behind (a line) where no front
 /// one covers its time. Fronts overlap no front, nor those behind one another, since each pair
-/// that overlaps is one nearer than the other.
+/// that overlaps is one nearer than the other; so both come in time order from `by_start`, the
+/// intervals' order by start time, and merge in one pass.
 fn resolve_layers(
     intervals: &[Interval],
+    by_start: &[u32],
     layers: &[Layer],
-    shown: &mut Vec<(u32, [f64; 2])>,
     out: &mut Vec<Interval>,
 ) {
-    shown.clear();
-    for (k, (interval, layer)) in intervals.iter().zip(layers).enumerate() {
-        if *layer != Layer::Behind && interval.t[1] > interval.t[0] {
-            shown.push((k as u32, interval.t));
-        }
-    }
-    shown.sort_unstable_by(|a, b| a.1[0].total_cmp(&b.1[0]));
-    let fronts = shown.len();
-    for (k, (interval, layer)) in intervals.iter().zip(layers).enumerate() {
-        if *layer != Layer::Behind {
-            continue;
-        }
-        let [mut from, to] = interval.t;
-        for f in 0..fronts {
-            let [f0, f1] = shown[f].1;
-            if f1 <= from || f0 >= to {
-                continue;
-            }
-            if f0 > from {
-                shown.push((k as u32, [from, f0]));
-            }
-            from = from.max(f1);
-        }
-        if to > from {
-            shown.push((k as u32, [from, to]));
-        }
-    }
-    shown.sort_unstable_by(|a, b| a.1[0].total_cmp(&b.1[0]));
     let first = out.len();
-    for &(k, span) in shown.iter() {
-        push_visible(out, first, &intervals[k as usize], span);
+    let in_layer = |behind: bool| {
+        by_start.iter().map(|&k| k as usize).filter(move |&k| {
+            (layers[k] == Layer::Behind) == behind && intervals[k].t[1] > intervals[k].t[0]
+        })
+    };
+    let mut fronts = in_layer(false).peekable();
+    // Where the fronts shown so far end.
+    let mut covered_until = f64::NEG_INFINITY;
+    for b in in_layer(true) {
+        let back = &intervals[b];
+        let mut from = back.t[0].max(covered_until);
+        while let Some(f) = fronts.next_if(|&f| intervals[f].t[0] < back.t[1]) {
+            let front = &intervals[f];
+            if front.t[0] > from {
+                push_visible(out, first, back, [from, front.t[0]]);
+            }
+            push_visible(out, first, front, front.t);
+            covered_until = front.t[1];
+            from = from.max(covered_until);
+        }
+        if back.t[1] > from {
+            push_visible(out, first, back, [from, back.t[1]]);
+        }
+    }
+    for f in fronts {
+        push_visible(out, first, &intervals[f], intervals[f].t);
     }
 }
 
@@ -236,7 +232,7 @@ pub fn resolve(
         &mut scratch.ranges,
         &mut scratch.layers,
     ) {
-        resolve_layers(intervals, &scratch.layers, &mut scratch.shown, out);
+        resolve_layers(intervals, &scratch.by_start, &scratch.layers, out);
         return;
     }
     if intervals.iter().any(|i| i.bends) {
