@@ -385,9 +385,21 @@ mod tests {
     }
 
     fn resolved(intervals: &[Interval]) -> Vec<Interval> {
+        resolved_with(intervals, &AsIs)
+    }
+
+    fn resolved_with(intervals: &[Interval], depth: &impl BentDepth) -> Vec<Interval> {
         let mut out = Vec::new();
-        resolve(intervals, &mut ResolveScratch::default(), &mut out, &AsIs);
+        resolve(intervals, &mut ResolveScratch::default(), &mut out, depth);
         out
+    }
+
+    /// Blue of [`blue_and_red`] marked as bending ([`BluePieces`]).
+    fn bent_blue() -> Interval {
+        Interval {
+            bends: true,
+            ..blue_and_red().0
+        }
     }
 
     #[test]
@@ -414,30 +426,14 @@ mod tests {
         // Blue held as its line from depth 1 to 3 while its depth bends through 1.4 at t = 0.5,
         // and red: the line would cross 2 at t = 0.5, the bent depth crosses it at
         // 0.5 + 0.5 · 0.6 / 1.6 = 0.6875.
-        let (blue, still) = blue_and_red();
-        let bent = Interval {
-            bends: true,
-            ..blue
-        };
-        let mut out = Vec::new();
-        resolve(
-            &[still, bent],
-            &mut ResolveScratch::default(),
-            &mut out,
-            &BluePieces,
-        );
+        let (_, still) = blue_and_red();
+        let bent = bent_blue();
+        let out = resolved_with(&[still, bent], &BluePieces);
         assert_eq!(out.len(), 3, "{out:?}");
         assert_eq!(out.iter().map(|p| p.item).collect::<Vec<_>>(), [0, 0, 1]);
         assert!((out[1].t[1] - 0.6875).abs() < 1e-12 && out[2].t == [out[1].t[1], 1.0]);
         // Alone, it overlaps nothing: no depth is compared, and it stays one line.
-        out.clear();
-        resolve(
-            &[bent],
-            &mut ResolveScratch::default(),
-            &mut out,
-            &BluePieces,
-        );
-        assert_eq!(out, [bent]);
+        assert_eq!(resolved_with(&[bent], &BluePieces), [bent]);
     }
 
     /// Blue's depth bending through 1.4 at t = 0.5 (its two linear pieces), bounded by [1, 3].
@@ -459,30 +455,13 @@ mod tests {
     fn a_bent_interval_nearer_than_all_it_overlaps_stays_whole_and_one_that_may_cross_is_cut() {
         // Behind blue's bounds all along, a still surface at depth 3.5 is hidden while blue
         // covers it: blue stays the one line it was given, and no piece of it is asked for.
-        let (blue, _) = blue_and_red();
-        let bent = Interval {
-            bends: true,
-            ..blue
-        };
+        let bent = bent_blue();
         let behind = line([0.2, 1.0], [3.5, 3.5], 1);
-        let mut out = Vec::new();
-        resolve(
-            &[behind, bent],
-            &mut ResolveScratch::default(),
-            &mut out,
-            &BluePieces,
-        );
-        assert_eq!(out, [bent]);
+        assert_eq!(resolved_with(&[behind, bent], &BluePieces), [bent]);
         // At depth 3, on blue's farthest bound, it might be crossed: blue is cut, and wholly
         // nearer than it anyway.
         let touching = line([0.2, 1.0], [3.0, 3.0], 1);
-        out.clear();
-        resolve(
-            &[touching, bent],
-            &mut ResolveScratch::default(),
-            &mut out,
-            &BluePieces,
-        );
+        let out = resolved_with(&[touching, bent], &BluePieces);
         assert_eq!(out.len(), 2, "{out:?}");
         assert_eq!((out[0].depth, out[1].depth), ([1.0, 1.4], [1.4, 3.0]));
     }
