@@ -384,11 +384,17 @@ fn draw<const B: usize>(
     let (image, raster) = if plan.any_triangles() {
         let drawn = triangles::draw(plan, exposure);
         stats.triangles.add(&drawn.stats);
-        let target = Target {
-            occluder: Some(&drawn.hidden_beyond),
-            ..target
-        };
-        rasterize_over(footprints, &target, bins, |i| drawn.image.pixels[i])
+        match &drawn.hidden_beyond {
+            Some(hidden) => {
+                let target = Target {
+                    occluder: Some(hidden),
+                    ..target
+                };
+                rasterize_over(footprints, &target, bins, |i| drawn.image.pixels[i])
+            }
+            // No surfels are drawn: the triangles' image is the image.
+            None => (drawn.image, RasterStats::default()),
+        }
     } else {
         rasterize_over(footprints, &target, bins, |_| scene.background)
     };

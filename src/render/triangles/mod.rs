@@ -282,7 +282,8 @@ pub struct TriangleImage {
     pub image: Framebuffer,
     /// Per pixel, the depth behind which everything is hidden by triangles at every sample and
     /// instant (+∞ where some sample sees past them): the occluder for surfels drawn after.
-    pub hidden_beyond: Vec<f32>,
+    /// `None` where the scene draws no surfels.
+    pub hidden_beyond: Option<Vec<f32>>,
     /// What was drawn.
     pub stats: TriangleStats,
 }
@@ -522,10 +523,18 @@ impl<'a> Prepared<'a> {
         let offsets = camera.sample_offsets();
         let band = width as usize * TILE_PX as usize;
         let mut image = Framebuffer::filled(width, height, self.scene.background);
-        let mut hidden_beyond = vec![f32::INFINITY; width as usize * height as usize];
+        let mut hidden_beyond = self
+            .occludes_surfels
+            .then(|| vec![f32::INFINITY; width as usize * height as usize]);
+        let mut hidden_bands: Vec<Option<&mut [f32]>> = match &mut hidden_beyond {
+            Some(hidden) => hidden.chunks_mut(band).map(Some).collect(),
+            None => (0..image.pixels.len().div_ceil(band))
+                .map(|_| None)
+                .collect(),
+        };
         let pool = ScratchPool::default();
         let stats: Vec<TriangleStats> = (image.pixels.par_chunks_mut(band))
-            .zip(hidden_beyond.par_chunks_mut(band))
+            .zip(hidden_bands.par_iter_mut())
             .with_max_len(1)
             .enumerate()
             .map(|(ty, (pixels, hidden))| {
@@ -541,7 +550,9 @@ impl<'a> Prepared<'a> {
                                 + x0 as usize
                                 + i % w;
                             pixels[at] = *colour;
-                            hidden[at] = *hide;
+                            if let Some(hidden) = hidden {
+                                hidden[at] = *hide;
+                            }
                         }
                     }
                     stats
@@ -602,9 +613,13 @@ impl<'a> Prepared<'a> {
                         index,
                         depth: placed.depth,
                         bounds,
-                        plain: item.plain.then(|| PlainFace {
-                            normals: self.world_normals(item, [1.0 / 3.0; 3]),
-                            albedo: self.albedo_with(item, [1.0 / 3.0; 3]),
+                        plain: item.plain.then(|| {
+                            let normals = self.world_normals(item, [1.0 / 3.0; 3]);
+                            PlainFace {
+                                normals,
+                                at_start: unit_between(normals, 0.0),
+                                albedo: self.albedo_with(item, [1.0 / 3.0; 3]),
+                            }
                         }),
                     });
                 }
@@ -1364,7 +1379,12 @@ impl<'a> Prepared<'a> {
         s: f64,
         face: &PlainFace,
     ) -> SurfacePoint {
-        let (normal, point) = self.oriented(hit, d, s, face.normals);
+        let unit = if s == 0.0 {
+            face.at_start
+        } else {
+            unit_between(face.normals, s)
+        };
+        let (normal, point) = self.on_side(hit, d, unit);
         SurfacePoint {
             normal,
             point,
@@ -1375,7 +1395,11 @@ impl<'a> Prepared<'a> {
     /// The shading normal and world point where the ray `d` meets `item` at segment fraction
     /// `s`, at `hit`.
     fn surface_with(&self, item: &Item, hit: &RayHit, d: DVec3, s: f64) -> (DVec3, DVec3) {
-        self.oriented(hit, d, s, self.world_normals(item, hit.weights))
+        self.on_side(
+            hit,
+            d,
+            unit_between(self.world_normals(item, hit.weights), s),
+        )
     }
 
     /// The shading normal of `item` at barycentric `weights` in world space, at its segment's
@@ -1391,10 +1415,10 @@ impl<'a> Prepared<'a> {
         self.segment(item).rotation.map(|r| r * local)
     }
 
-    /// The shading normal at segment fraction `s` between the world `normals` at its ends, on
-    /// the side of `hit`, and the world point of `hit` on the ray `d`.
-    fn oriented(&self, hit: &RayHit, d: DVec3, s: f64, [n0, n1]: [DVec3; 2]) -> (DVec3, DVec3) {
-        let mut world = n0.lerp(n1, s).normalize_or_zero();
+    /// The unit shading normal `unit` on the side of `hit`, and the world point of `hit` on the
+    /// ray `d`.
+    fn on_side(&self, hit: &RayHit, d: DVec3, unit: DVec3) -> (DVec3, DVec3) {
+        let mut world = unit;
         // Both sides are drawn, and the side the ray meets turns the normal: not the shading
         // normal's own direction, which near a smooth mesh's silhouette faces away from the eye
         // on triangles that face it, and flipped would be lit from inside.
@@ -1834,10 +1858,19 @@ struct TileItem {
     plain: Option<PlainFace>,
 }
 
+/// The shading normal at segment fraction `s` between the world `normals` at its ends
+/// (interpolated linearly and normalized, Palmér §2.3.2).
+fn unit_between([n0, n1]: [DVec3; 2], s: f64) -> DVec3 {
+    n0.lerp(n1, s).normalize_or_zero()
+}
+
 /// A plain item's world shading normals at its segment's ends, and its colour.
 #[derive(Clone, Copy)]
 struct PlainFace {
     normals: [DVec3; 2],
+    /// The unit normal at the segment's start ([`unit_between`] at 0): a still face's at
+    /// every sample.
+    at_start: DVec3,
     albedo: [f64; 3],
 }
 
