@@ -138,9 +138,11 @@ pub struct TriangleStats {
     pub spatial_samples: u32,
     /// Tiles of the shadow maps (every light's, every frame's).
     pub shadow_tiles: usize,
-    /// Of those, tiles left without occluders: only one object that cannot shadow itself
-    /// reaches them, and its own lookups leave it out.
+    /// Of those, tiles left without occluders ([`Prepared::casting`]).
     pub shadow_tiles_left_empty: usize,
+    /// Item × shadow-map tile pairs left out: objects that cannot shadow themselves, wholly
+    /// deeper there than every other object.
+    pub shadow_items_left_out: usize,
 }
 
 impl TriangleStats {
@@ -156,8 +158,8 @@ impl TriangleStats {
         );
         if self.shadow_tiles > 0 {
             out.push_str(&format!(
-                "  shadow maps: {} of {} tiles left empty (only one object that cannot shadow itself reaches them)\n",
-                self.shadow_tiles_left_empty, self.shadow_tiles
+                "  shadow maps: {} item × tile pairs left out, and {} of {} tiles left empty (objects that cannot shadow themselves, wholly deeper there than every other object)\n",
+                self.shadow_items_left_out, self.shadow_tiles_left_empty, self.shadow_tiles
             ));
         }
         if self.intervals > 0 {
@@ -190,6 +192,7 @@ impl TriangleStats {
         self.spatial_samples = self.spatial_samples.max(other.spatial_samples);
         self.shadow_tiles += other.shadow_tiles;
         self.shadow_tiles_left_empty += other.shadow_tiles_left_empty;
+        self.shadow_items_left_out += other.shadow_items_left_out;
     }
 }
 
@@ -565,6 +568,7 @@ impl<'a> Prepared<'a> {
             spatial_samples: camera.spatial_samples,
             shadow_tiles: self.shadows.iter().map(ShadowMap::tiles).sum(),
             shadow_tiles_left_empty: self.shadows.iter().map(ShadowMap::left_empty).sum(),
+            shadow_items_left_out: self.shadows.iter().map(ShadowMap::left_out).sum(),
             ..TriangleStats::default()
         };
         for s in &stats {
@@ -607,7 +611,7 @@ impl<'a> Prepared<'a> {
                 }
                 let placed = self.triangle(item);
                 if cut_later {
-                    let bounds @ [near, far] = depth_bounds_within(&placed, rays);
+                    let bounds @ [near, far] = depth_bounds_within(&placed.triangle, rays);
                     depth_bounds = [depth_bounds[0].min(near), depth_bounds[1].max(far)];
                     scratch.tile.push(TileItem {
                         index,
@@ -1511,20 +1515,23 @@ impl<'a> Prepared<'a> {
         let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
         let pool = ScratchPool::default();
-        let tiles: Vec<(Vec<u32>, Vec<Occluder>, usize)> = (0..grid.count())
+        // Per tile: its texels' lists, whether all its items were left out, and how many were.
+        let tiles: Vec<(Vec<u32>, Vec<Occluder>, usize, usize)> = (0..grid.count())
             .into_par_iter()
             .with_max_len(1)
             .map(|tile| {
                 let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
                 let texels = ((x1 - x0) * (y1 - y0)) as usize;
-                let list = lists.list(tile);
-                if self.shadows_nothing_read_here(list) {
-                    return (Vec::new(), Vec::new(), 1);
+                let all = lists.list(tile);
+                let list = self.casting(all, bounds);
+                let left_out = all.len() - list.len();
+                if list.is_empty() {
+                    return (Vec::new(), Vec::new(), usize::from(left_out > 0), left_out);
                 }
                 pool.with(|scratch| {
                     let mut stats = TriangleStats::default();
                     let depth = DepthPieces::AtOnce;
-                    self.fill_tile(list, bounds, &offsets, depth, scratch, &mut stats);
+                    self.fill_tile(&list, bounds, &offsets, depth, scratch, &mut stats);
                     let mut starts = Vec::with_capacity(texels + 1);
                     let mut found = Vec::new();
                     starts.push(0u32);
@@ -1563,38 +1570,72 @@ impl<'a> Prepared<'a> {
                     if occluders.is_empty() {
                         starts = Vec::new();
                     }
-                    (starts, occluders, 0)
+                    (starts, occluders, 0, left_out)
                 })
             })
             .collect();
-        let left_empty = tiles.iter().map(|(_, _, empty)| empty).sum();
+        let left_empty = tiles.iter().map(|(_, _, empty, _)| empty).sum();
+        let left_out = tiles.iter().map(|(_, _, _, left_out)| left_out).sum();
         Occluders {
             camera: self.camera.clone(),
             tiles: tiles
                 .into_iter()
-                .map(|(starts, list, _)| (starts, list))
+                .map(|(starts, list, _, _)| (starts, list))
                 .collect(),
             left_empty,
+            left_out,
         }
     }
 
-    /// Whether a shadow-map tile whose items are `list` can be left without occluders: they all
-    /// belong to one object that cannot shadow itself. A receiver's lookups read only texels
-    /// within its own item's bounds (its point lies on its triangle, whose corners' projections
-    /// over the segment, widened by a texel, bound the item; a bilinear lookup reads half a
-    /// texel further), so only that object's receivers read this tile, and they leave all of its
-    /// occluders out. Not where a triangle crosses the light's near plane: its bounds then hold
-    /// only the part in front.
-    fn shadows_nothing_read_here(&self, list: &[u32]) -> bool {
+    /// The items of `list`, a shadow-map tile's (pixels `bounds`), that may shadow a receiver
+    /// whose lookups read the tile. A receiver's lookups read only texels within its own item's
+    /// bounds (its point lies on its triangle, whose corners' projections over the segment,
+    /// widened by a texel, bound the item; a bilinear lookup reads half a texel further), so only
+    /// the receivers of the tile's items read it, at depths within their items' bounds there.
+    /// An object that cannot shadow itself and lies, over the tile, wholly deeper than every
+    /// other object's items shadows none of them, and its own lookups leave it out: its items
+    /// are left out (all of them where it is the only object). Not where a triangle crosses the
+    /// light's near plane: its bounds then hold only the part in front.
+    fn casting(&self, list: &[u32], bounds: [u32; 4]) -> Vec<u32> {
         if self.near_clipped || self.behind_near > 0 {
-            return false;
+            return list.to_vec();
         }
-        let object = |index: &u32| self.items[*index as usize].object;
-        list.first().is_some_and(|first| {
-            let only = object(first);
-            !self.objects[only as usize].1.shadows_itself
-                && list.iter().all(|index| object(index) == only)
-        })
+        let may_leave_out = |index: &u32| {
+            let object = self.items[*index as usize].object;
+            !self.objects[object as usize].1.shadows_itself
+        };
+        if !list.iter().any(may_leave_out) {
+            return list.to_vec();
+        }
+        let rays = self.corner_rays(bounds);
+        // Per object of the tile (its items come grouped, in item order): its depth bounds.
+        let mut objects: Vec<(u32, [f64; 2])> = Vec::new();
+        for &index in list {
+            let item = &self.items[index as usize];
+            let [near, far] = depth_bounds_within(&self.corners(item), rays);
+            match objects.last_mut() {
+                Some((object, range)) if *object == item.object => {
+                    *range = [range[0].min(near), range[1].max(far)];
+                }
+                _ => objects.push((item.object, [near, far])),
+            }
+        }
+        let behind_the_rest = |object: u32, [near, _]: [f64; 2]| {
+            !self.objects[object as usize].1.shadows_itself
+                && objects
+                    .iter()
+                    .filter(|(other, _)| *other != object)
+                    .all(|(_, [_, far])| *far < near)
+        };
+        list.iter()
+            .copied()
+            .filter(|&index| {
+                let object = self.items[index as usize].object;
+                !objects
+                    .iter()
+                    .any(|&(o, range)| o == object && behind_the_rest(o, range))
+            })
+            .collect()
     }
 }
 
@@ -1610,15 +1651,13 @@ enum DepthPieces {
     OnDemand,
 }
 
-/// Bounds on the depth of `placed` where the rays between the corner `rays` of a tile meet it:
+/// Bounds on the depth of `triangle` where the rays between the corner `rays` of a tile meet it:
 /// its corners' over its segment, or, still, its plane's over those rays
 /// ([`MovingTriangle::plane_depths_within`]) where they are tighter.
-fn depth_bounds_within(placed: &Placed, rays: [DVec3; 4]) -> [f64; 2] {
-    let bounds = placed.triangle.depth_bounds();
-    match placed
-        .still
-        .then(|| placed.triangle.plane_depths_within(rays))
-    {
+fn depth_bounds_within(triangle: &MovingTriangle, rays: [DVec3; 4]) -> [f64; 2] {
+    let bounds = triangle.depth_bounds();
+    let still = triangle.delta == [DVec3::ZERO; 3];
+    match still.then(|| triangle.plane_depths_within(rays)) {
         Some(Some(plane)) => [bounds[0].max(plane[0]), bounds[1].min(plane[1])],
         _ => bounds,
     }

@@ -227,8 +227,11 @@ pub struct Occluders {
     pub camera: Camera,
     /// Per tile: where each texel's list starts, and the lists.
     pub tiles: Vec<(Vec<u32>, Vec<Occluder>)>,
-    /// Tiles left without occluders: only one object that cannot shadow itself reaches them.
+    /// Tiles left without occluders: every object that reaches them cannot shadow itself and
+    /// lies wholly deeper there than every other object.
     pub left_empty: usize,
+    /// Item × tile pairs left out so.
+    pub left_out: usize,
 }
 
 /// A light's shadow map, ready for lookups.
@@ -316,6 +319,12 @@ impl ShadowMap {
     #[must_use]
     pub fn left_empty(&self) -> usize {
         self.occluders.left_empty
+    }
+
+    /// Item × tile pairs left out ([`Occluders::left_out`]).
+    #[must_use]
+    pub fn left_out(&self) -> usize {
+        self.occluders.left_out
     }
 
     /// Whether `receiver` is lit throughout its span: in every texel its bilinear lookups can
@@ -802,6 +811,7 @@ mod tests {
             camera,
             tiles: vec![(starts, vec![occluder])],
             left_empty: 0,
+            left_out: 0,
         })
         .summarised()
     }
@@ -853,6 +863,7 @@ mod tests {
             camera,
             tiles,
             left_empty: 3,
+            left_out: 3,
         })
         .summarised();
         // The eight corners of a box of texels [x0, x1] × [y0, y1] between depths 4 and 6.
