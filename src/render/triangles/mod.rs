@@ -525,7 +525,9 @@ impl<'a> Prepared<'a> {
         let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
         let band = width as usize * TILE_PX as usize;
-        let mut image = Framebuffer::filled(width, height, self.scene.background);
+        // Every pixel is written by its tile: zeroed pages the OS hands out untouched, so the
+        // first touch happens in the parallel pass.
+        let mut image = Framebuffer::filled(width, height, [0.0; 3]);
         let mut hidden_beyond = self
             .occludes_surfels
             .then(|| vec![f32::INFINITY; width as usize * height as usize]);
@@ -1048,24 +1050,21 @@ impl<'a> Prepared<'a> {
         own: (u32, u32),
         unshadowed: [bool; MAX_SHADOWED_LIGHTS],
     ) -> f64 {
-        let receiver = Receiver {
-            path: [point; 2],
-            normal,
-            span,
-            own,
-        };
         let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
         let mut maps = self.shadows.iter().zip(unshadowed).zip(&mut visibility);
         for source in self.sources.iter().filter(|source| source.shadows()) {
             let Some(((map, unshadowed), visibility)) = maps.next() else {
                 break;
             };
-            let away = || normal.dot(source.towards(point)) <= 0.0;
-            if unshadowed || away() || map.surely_lit(&receiver) {
+            if unshadowed || normal.dot(source.towards(point)) <= 0.0 {
                 continue;
             }
-            // Behind its light a point takes no shadow from it.
-            if let Some(placed) = map.place(point, normal) {
+            // Placed once, for the lit-for-sure test and the mean; behind its light a point
+            // takes no shadow from it.
+            let Some(placed) = map.place(point, normal) else {
+                continue;
+            };
+            if !map.surely_lit_between(placed, placed, span, own) {
                 *visibility = map.mean_visibility(placed, span, own, &self.scene.shutter);
             }
         }
