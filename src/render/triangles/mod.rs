@@ -138,7 +138,8 @@ pub struct TriangleStats {
     pub spatial_samples: u32,
     /// Tiles of the shadow maps (every light's, every frame's).
     pub shadow_tiles: usize,
-    /// Of those, tiles left without occluders ([`Prepared::casting`]).
+    /// Of those, tiles left without occluders: every object that reaches them cannot shadow
+    /// itself and lies wholly deeper there than every other object.
     pub shadow_tiles_left_empty: usize,
     /// Item × shadow-map tile pairs left out: objects that cannot shadow themselves, wholly
     /// deeper there than every other object.
