@@ -122,7 +122,15 @@ impl Spot {
     #[must_use]
     pub fn reach(&self, from_light: DVec3) -> f64 {
         let [outer, inner] = self.edge_cosines;
-        let x = ((from_light.dot(self.direction) - outer) / (inner - outer)).clamp(0.0, 1.0);
+        let cosine = from_light.dot(self.direction);
+        // Within the inner cone and outside the cone, what the ramp gives there, undivided.
+        if cosine >= inner {
+            return self.intensity;
+        }
+        if cosine <= outer {
+            return 0.0;
+        }
+        let x = ((cosine - outer) / (inner - outer)).clamp(0.0, 1.0);
         self.intensity * x * x * (3.0 - 2.0 * x)
     }
 }
@@ -255,6 +263,18 @@ impl LightSource<'_> {
         match self {
             LightSource::Directional(l) => l.direction,
             LightSource::Spot(s) => (s.position - p).normalize_or_zero(),
+        }
+    }
+
+    /// N·(L − p) towards a spot at L, N·L towards a directional light: the sign of the cosine
+    /// at world point `p` on a surface with `normal` (of any length), without normalizing. Linear
+    /// in `p` and in the normal, so exactly quadratic in time where both move linearly (Palmér
+    /// eq. 2.5).
+    #[must_use]
+    pub fn facing(&self, normal: DVec3, p: DVec3) -> f64 {
+        match self {
+            LightSource::Directional(l) => normal.dot(l.direction),
+            LightSource::Spot(s) => normal.dot(s.position - p),
         }
     }
 
@@ -495,6 +515,37 @@ pub(crate) fn rgb<T: Copy + Into<f64> + std::fmt::Display>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_spot_reaches_fully_within_its_inner_cone_and_fades_to_nothing_over_its_edge() {
+        let spot = Spot::new(DVec3::ZERO, -DVec3::Z, 30.0, 0.8, false).unwrap();
+        // A direction `degrees` off the axis.
+        let off_axis = |degrees: f64| {
+            let a = degrees.to_radians();
+            DVec3::new(a.sin(), 0.0, -a.cos())
+        };
+        let inner = (1.0 - SPOT_EDGE) * 30.0;
+        for degrees in [0.0, 10.0, inner - 1e-9] {
+            assert_eq!(spot.reach(off_axis(degrees)), 0.8, "{degrees}°");
+        }
+        for degrees in [30.0 + 1e-9, 45.0, 120.0] {
+            assert_eq!(spot.reach(off_axis(degrees)), 0.0, "{degrees}°");
+        }
+        // Across the edge, the smoothstep of the cosine: strictly falling, 0.4 half-way in
+        // cosine.
+        let ramp: Vec<f64> = (1..10)
+            .map(|k| spot.reach(off_axis(inner + (30.0 - inner) * f64::from(k) / 10.0)))
+            .collect();
+        assert!(
+            ramp.windows(2)
+                .all(|p| p[0] > p[1] && p[1] > 0.0 && p[0] < 0.8),
+            "{ramp:?}"
+        );
+        let [outer_cos, inner_cos] = spot.edge_cosines;
+        let middle = (0.5 * (outer_cos + inner_cos)).acos();
+        let half = spot.reach(DVec3::new(middle.sin(), 0.0, -middle.cos()));
+        assert!((half - 0.4).abs() < 1e-12, "{half}");
+    }
 
     #[test]
     fn lighting_shades_by_the_cosine_law() {

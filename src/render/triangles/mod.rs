@@ -25,7 +25,7 @@ use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMesh};
 use intervals::{resolve, AsIs, BentDepth, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
-use shadow::{Occluder, Occluders, Receiver, ShadowMap};
+use shadow::{Casters, Occluder, Occluders, Receiver, ShadowMap};
 use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth, RayHit};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
@@ -620,6 +620,7 @@ impl<'a> Prepared<'a> {
                         index,
                         depth: placed.depth,
                         bounds,
+                        unshadowed: [false; MAX_SHADOWED_LIGHTS],
                         plain: item.plain.then(|| {
                             let normals = self.world_normals(item, [1.0 / 3.0; 3]);
                             PlainFace {
@@ -634,7 +635,12 @@ impl<'a> Prepared<'a> {
             }
         }
         if cut_later {
-            scratch.tile.unshadowed = self.unshadowed(rays, depth_bounds);
+            let casters = self.casters_seen(rays, depth_bounds);
+            for entry in &mut scratch.tile.entries {
+                let own = self.shadow_id(&self.items[entry.index as usize]);
+                entry.unshadowed =
+                    casters.map(|casters| casters.is_some_and(|casters| casters.none_but(own)));
+            }
         }
     }
 
@@ -645,26 +651,31 @@ impl<'a> Prepared<'a> {
             .map(|(x, y)| self.camera.ray(f64::from(x), f64::from(y)))
     }
 
-    /// Per shadow map, whether it holds no occluder in any texel that a receiver seen between
-    /// the corner `rays` of a tile ([`Prepared::corner_rays`]) at a depth within `[near, far]`
-    /// can read. Such receivers lie in the frustum piece between those depths, the convex hull
-    /// of its eight corners, which [`ShadowMap::empty_around`] tests at once for the whole tile:
-    /// where it holds, no sample of the tile walks the map to find that it is lit.
-    fn unshadowed(&self, rays: [DVec3; 4], [near, far]: [f64; 2]) -> [bool; MAX_SHADOWED_LIGHTS] {
-        let mut unshadowed = [false; MAX_SHADOWED_LIGHTS];
+    /// Per shadow map, whose occluders lie in the texels that a receiver seen between the corner
+    /// `rays` of a tile ([`Prepared::corner_rays`]) at a depth within `[near, far]` can read.
+    /// Such receivers lie in the frustum piece between those depths, the convex hull of its
+    /// eight corners, which [`ShadowMap::casters_around`] reads at once for the whole tile:
+    /// where it holds nothing but a run's own occluders, no sample of the tile walks the map to
+    /// find that the run is lit.
+    fn casters_seen(
+        &self,
+        rays: [DVec3; 4],
+        [near, far]: [f64; 2],
+    ) -> [Option<Casters>; MAX_SHADOWED_LIGHTS] {
+        let mut casters = [None; MAX_SHADOWED_LIGHTS];
         let near = near.max(self.camera.near);
         if !(far >= near && far.is_finite()) {
-            return unshadowed;
+            return casters;
         }
         let mut corners = [DVec3::ZERO; 8];
         for (k, corner) in corners.iter_mut().enumerate() {
             let depth = if k & 4 == 0 { near } else { far };
             *corner = self.view_to_world.transform_point3(rays[k & 3] * depth);
         }
-        for (clear, map) in unshadowed.iter_mut().zip(&self.shadows) {
-            *clear = map.empty_around(&corners);
+        for (seen, map) in casters.iter_mut().zip(&self.shadows) {
+            *seen = map.casters_around(&corners);
         }
-        unshadowed
+        casters
     }
 
     /// Insert item `index` (`placed`) into the lists (or the z-buffer) of the samples of the
@@ -942,11 +953,9 @@ impl<'a> Prepared<'a> {
             // Every point of the run lies on the sample's ray, each piece's between the depths its
             // range bounds: its path in a shadow map is the straight one between the nearest and
             // the farthest, and none of it lies deeper from the light than they do.
+            let unshadowed = tile.unshadowed(run[0].item);
             ranges.clear();
-            if !tile.unshadowed[..self.shadows.len()]
-                .iter()
-                .all(|&clear| clear)
-            {
+            if !unshadowed[..self.shadows.len()].iter().all(|&clear| clear) {
                 ranges.extend(run.iter().map(|piece| self.depth_range(piece, d, tile)));
             }
             let whole = ranges
@@ -955,10 +964,12 @@ impl<'a> Prepared<'a> {
                     range.map(|[a, b]| [lo.min(a), hi.max(b)])
                 });
             let on_ray = |depth: f64| self.view_to_world.transform_point3(d * depth);
-            let mut maps = self.shadows.iter().zip(tile.unshadowed);
+            let mut maps = self.shadows.iter().zip(unshadowed);
             for source in &self.sources {
-                // N·L at each piece's ends (shared with its neighbours) and middle.
-                let facing = |end: &SurfacePoint| end.normal.dot(source.towards(end.point));
+                // The sign of N·L at each piece's ends (shared with its neighbours) and middle,
+                // as the surface within a piece is interpolated: quadratic in time, so that the
+                // cuts are its roots.
+                let facing = |end: &SurfacePoint| source.facing(end.normal, end.point);
                 let mut away = true;
                 let mut start = facing(&ends[0]);
                 for i in 0..run.len() {
@@ -1039,11 +1050,11 @@ impl<'a> Prepared<'a> {
     }
 
     /// The mean irradiance over `span` of a still receiver (its `normal` and `point`, on
-    /// triangle `own`), weighted by the shutter. A shadow map whose light faces away from it, or
-    /// that holds no nearer occluder in its texels over the span (`unshadowed` for the whole
-    /// tile, else [`ShadowMap::surely_lit`]), leaves it lit; the others give the mean share of
-    /// their light over the span in closed form ([`ShadowMap::mean_visibility`]), and light is
-    /// linear in it.
+    /// triangle `own`), weighted by the shutter: [`Prepared::irradiance`] with each light's
+    /// direction found once. A shadow map whose light gives it nothing, or that holds no nearer
+    /// occluder in its texels over the span (`unshadowed` for the whole tile, else
+    /// [`ShadowMap::surely_lit`]), leaves it lit; the others give the mean share of their light
+    /// over the span in closed form ([`ShadowMap::mean_visibility`]), and light is linear in it.
     fn still_irradiance(
         &self,
         (normal, point): (DVec3, DVec3),
@@ -1051,25 +1062,34 @@ impl<'a> Prepared<'a> {
         own: (u32, u32),
         unshadowed: [bool; MAX_SHADOWED_LIGHTS],
     ) -> f64 {
-        let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
-        let mut maps = self.shadows.iter().zip(unshadowed).zip(&mut visibility);
-        for source in self.sources.iter().filter(|source| source.shadows()) {
-            let Some(((map, unshadowed), visibility)) = maps.next() else {
-                break;
-            };
-            if unshadowed || normal.dot(source.towards(point)) <= 0.0 {
-                continue;
-            }
-            // Placed once, for the lit-for-sure test and the mean; behind its light a point
-            // takes no shadow from it.
-            let Some(placed) = map.place(point, normal) else {
-                continue;
-            };
-            if !map.surely_lit_between(placed, placed, span, own) {
-                *visibility = map.mean_visibility(placed, span, own, &self.scene.shutter);
-            }
+        let lighting = &self.scene.lighting;
+        if !lighting.is_lit() {
+            return 1.0;
         }
-        self.irradiance(normal, point, &visibility)
+        let mut maps = self.shadows.iter().zip(unshadowed);
+        let direct: f64 = self
+            .sources
+            .iter()
+            .map(|source| {
+                let light = source.irradiance(normal, point);
+                let Some((map, unshadowed)) = source.shadows().then(|| maps.next()).flatten()
+                else {
+                    return light;
+                };
+                if unshadowed || !(light > 0.0) {
+                    return light;
+                }
+                // Placed once, for the lit-for-sure test and the mean; behind its light a point
+                // takes no shadow from it.
+                match map.place(point, normal) {
+                    Some(placed) if !map.surely_lit_between(placed, placed, span, own) => {
+                        map.mean_visibility(placed, span, own, &self.scene.shutter) * light
+                    }
+                    _ => light,
+                }
+            })
+            .sum();
+        lighting.ambient + direct
     }
 
     /// Mean colour of a visible piece, weighted by the shutter. A still triangle's piece is shaded
@@ -1104,8 +1124,9 @@ impl<'a> Prepared<'a> {
                 Some((hit, face)) => self.plain_surface_point(&hit, d, 0.0, &face),
                 None => self.surface_point(item, &self.corners(item), d, 0.0),
             };
+            let unshadowed = tile.unshadowed(piece.item);
             let irradiance =
-                self.still_irradiance((surface.normal, surface.point), span, own, tile.unshadowed);
+                self.still_irradiance((surface.normal, surface.point), span, own, unshadowed);
             return surface.albedo.map(|c| c * irradiance);
         }
         let triangle = self.corners(item);
@@ -1141,12 +1162,12 @@ impl<'a> Prepared<'a> {
             let mut maps = self
                 .shadows
                 .iter()
-                .zip(tile.unshadowed)
+                .zip(tile.unshadowed(piece.item))
                 .zip(&mut surely_lit);
             for source in &self.sources {
                 let facing = |t: f64| {
                     let (normal, p) = surface_at(t);
-                    normal.dot(source.towards(p))
+                    source.facing(normal, p)
                 };
                 let middle = 0.5 * (span[0] + span[1]);
                 let values = [facing(span[0]), facing(middle), facing(span[1])];
@@ -1855,9 +1876,6 @@ struct TileShared {
     entries: Vec<TileItem>,
     /// Per item of the image, its place in `entries`, or [`NOT_IN_TILE`].
     slots: Vec<u32>,
-    /// Per shadow map, whether it holds no occluder where the tile's samples can see a
-    /// receiver ([`Prepared::unshadowed`]): each of them is lit by its light throughout.
-    unshadowed: [bool; MAX_SHADOWED_LIGHTS],
 }
 
 /// A [`TileShared`] slot of an item the tile does not hold.
@@ -1870,7 +1888,6 @@ impl TileShared {
             self.slots[entry.index as usize] = NOT_IN_TILE;
         }
         self.entries.clear();
-        self.unshadowed = [false; MAX_SHADOWED_LIGHTS];
         if self.slots.len() < items {
             self.slots.resize(items, NOT_IN_TILE);
         }
@@ -1884,6 +1901,12 @@ impl TileShared {
     fn of(&self, item: u32) -> Option<&TileItem> {
         self.entries.get(*self.slots.get(item as usize)? as usize)
     }
+
+    /// [`TileItem::unshadowed`] of item `item` (none where the tile does not hold it).
+    fn unshadowed(&self, item: u32) -> [bool; MAX_SHADOWED_LIGHTS] {
+        self.of(item)
+            .map_or([false; MAX_SHADOWED_LIGHTS], |entry| entry.unshadowed)
+    }
 }
 
 /// One item of a tile, as its samples reuse it.
@@ -1895,6 +1918,9 @@ struct TileItem {
     bounds: [f64; 2],
     /// For a plain item, its shading, the same at every sample.
     plain: Option<PlainFace>,
+    /// Per shadow map, whether it shadows none of the item's receivers the tile's samples see:
+    /// all it holds where they can be seen ([`Prepared::casters_seen`]) is their own.
+    unshadowed: [bool; MAX_SHADOWED_LIGHTS],
 }
 
 /// The shading normal at segment fraction `s` between the world `normals` at its ends

@@ -158,6 +158,24 @@ pub struct Occluder {
     pub id: (u32, u32),
 }
 
+/// Whose occluders a region of a shadow map holds ([`ShadowMap::casters_around`]): the merged
+/// record of its tiles.
+#[derive(Clone, Copy, Debug)]
+pub struct Casters(Nearest);
+
+impl Casters {
+    /// Whether every occluder there is `own`'s (or there is none): a receiver of `own` whose
+    /// lookups read only there is lit throughout. `Casters::none_but(NO_TRIANGLE)`: the region
+    /// holds no occluder at all.
+    #[must_use]
+    pub fn none_but(&self, own: (u32, u32)) -> bool {
+        self.0.except(own) == f32::INFINITY
+    }
+}
+
+/// An id no triangle has: [`Casters::none_but`] it holds where no occluder lies.
+pub const NO_TRIANGLE: (u32, u32) = (u32::MAX, u32::MAX);
+
 /// The nearest occluder depth over all time of a texel (or of a tile's texels), its triangle,
 /// and the nearest depth of every other triangle (+∞ where there is none): the nearest that can
 /// shadow any receiver, its own triangle left out, in one look.
@@ -171,7 +189,7 @@ struct Nearest {
 impl Nearest {
     const NONE: Nearest = Nearest {
         depth: f32::INFINITY,
-        id: (u32::MAX, u32::MAX),
+        id: NO_TRIANGLE,
         others: f32::INFINITY,
     };
 
@@ -294,19 +312,26 @@ impl ShadowMap {
     /// Whether no occluder of a triangle other than `own` in the tiles holding texels
     /// `[x0, y0, x1, y1)` lies nearer than `depth`: a receiver that reads only those texels
     /// and lies no deeper is lit throughout.
-    fn surely_lit_within(&self, [x0, y0, x1, y1]: [u32; 4], depth: f64, own: (u32, u32)) -> bool {
+    fn surely_lit_within(&self, texels: [u32; 4], depth: f64, own: (u32, u32)) -> bool {
+        f64::from(self.nearest_within(texels).except(own)) >= depth
+    }
+
+    /// The merged records of the tiles holding texels `[x0, y0, x1, y1)` (clamped to the map).
+    fn nearest_within(&self, [x0, y0, x1, y1]: [u32; 4]) -> Nearest {
         let side = self.occluders.camera.width;
         let (x1, y1) = (x1.min(side), y1.min(side));
         if x0 >= x1 || y0 >= y1 {
-            return true;
+            return Nearest::NONE;
         }
         let tile_px = crate::raster::TILE_PX;
-        (y0 / tile_px..(y1 - 1) / tile_px + 1).all(|ty| {
-            (x0 / tile_px..(x1 - 1) / tile_px + 1).all(|tx| {
+        let mut nearest = Nearest::NONE;
+        for ty in y0 / tile_px..(y1 - 1) / tile_px + 1 {
+            for tx in x0 / tile_px..(x1 - 1) / tile_px + 1 {
                 let tile = self.tile_of(tx * tile_px, ty * tile_px);
-                f64::from(self.nearest_in_tile[tile].except(own)) >= depth
-            })
-        })
+                nearest = nearest.merge(self.nearest_in_tile[tile]);
+            }
+        }
+        nearest
     }
 
     /// Tiles of the map.
@@ -425,15 +450,15 @@ impl ShadowMap {
         true
     }
 
-    /// Whether the map holds no occluder in any texel that a lookup at a point within the
-    /// convex hull of `corners` can read: every receiver there is lit throughout. The hull's
-    /// image in the map is the hull of its corners' images (the light's projection keeps
-    /// straight lines straight in front of it), so their bounding box and one texel more bound
-    /// what bilinear lookups read. False where a corner lies behind the light.
+    /// Whose occluders lie in the texels that a lookup at a point within the convex hull of
+    /// `corners` can read. The hull's image in the map is the hull of its corners' images (the
+    /// light's projection keeps straight lines straight in front of it), so their bounding box
+    /// and one texel more bound what bilinear lookups read. `None` (nothing known) where a
+    /// corner lies behind the light, or the map is not summarised.
     #[must_use]
-    pub fn empty_around(&self, corners: &[DVec3]) -> bool {
+    pub fn casters_around(&self, corners: &[DVec3]) -> Option<Casters> {
         if self.nearest_in_tile.is_empty() {
-            return false;
+            return None;
         }
         let mut bounds = [
             f64::INFINITY,
@@ -442,9 +467,7 @@ impl ShadowMap {
             f64::NEG_INFINITY,
         ];
         for &p in corners {
-            let Some((at, _)) = self.locate(p) else {
-                return false;
-            };
+            let (at, _) = self.locate(p)?;
             bounds = [
                 bounds[0].min(at.x),
                 bounds[1].min(at.y),
@@ -453,7 +476,7 @@ impl ShadowMap {
             ];
         }
         if !bounds.iter().all(|b| b.is_finite()) {
-            return false;
+            return None;
         }
         let side = f64::from(self.occluders.camera.width);
         // Texels ⌊x⌋ and ⌊x⌋ + 1 are read at x; clamped to the map (beyond it nothing is read).
@@ -464,8 +487,7 @@ impl ShadowMap {
             texel(bounds[2], 2.0),
             texel(bounds[3], 2.0),
         ];
-        // No occluder's id is Nearest::NONE's: every one counts.
-        self.surely_lit_within(texels, f64::INFINITY, Nearest::NONE.id)
+        Some(Casters(self.nearest_within(texels)))
     }
 
     /// Where world point `p` falls: continuous texel coordinates (texel centres at integers)
@@ -851,7 +873,7 @@ mod tests {
     }
 
     #[test]
-    fn a_hull_is_empty_around_only_where_no_lookup_within_it_reads_an_occluder() {
+    fn a_hull_holds_casters_only_where_a_lookup_within_it_reads_their_occluders() {
         // A 32 × 32 map of four tiles, the occluder in texel (8, 8) of the first.
         let camera = Camera::new(DVec3::ZERO, -DVec3::Z, DVec3::Y, 90.0, 32, 32)
             .and_then(|c| c.with_spatial_samples(1))
@@ -881,7 +903,8 @@ mod tests {
             [2.0, 16.1, 14.0, 30.0],
         ] {
             let corners = hull(texels);
-            assert!(map.empty_around(&corners), "{texels:?}");
+            let casters = map.casters_around(&corners).unwrap();
+            assert!(casters.none_but(NO_TRIANGLE), "{texels:?}");
             // Every point of the hull is then lit: its lookups read no occluder.
             for k in 0..=20 {
                 let u = f64::from(k) / 20.0;
@@ -891,13 +914,18 @@ mod tests {
                 assert!(map.surely_lit(&receiver([p, p], [0.0, 1.0], (0, 0))));
             }
         }
-        // A lookup at x in [15, 16) reads texel 16 and texel 15 of the first tile.
-        assert!(!map.empty_around(&hull([15.5, 2.0, 30.0, 14.0])));
-        assert!(!map.empty_around(&hull([2.0, 2.0, 14.0, 14.0])));
+        // A lookup at x in [15, 16) reads texel 16 and texel 15 of the first tile: the
+        // occluder's triangle (1, 0) is there, and only its own receivers are lit for sure.
+        for texels in [[15.5, 2.0, 30.0, 14.0], [2.0, 2.0, 14.0, 14.0]] {
+            let casters = map.casters_around(&hull(texels)).unwrap();
+            assert!(!casters.none_but(NO_TRIANGLE), "{texels:?}");
+            assert!(!casters.none_but((0, 0)), "{texels:?}");
+            assert!(casters.none_but((1, 0)), "{texels:?}");
+        }
         // A corner behind the light: nothing is known.
         let mut behind = hull([20.0, 20.0, 28.0, 28.0]);
         behind[0].z = 1.0;
-        assert!(!map.empty_around(&behind));
+        assert!(map.casters_around(&behind).is_none());
     }
 
     #[test]

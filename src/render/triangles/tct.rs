@@ -408,7 +408,10 @@ impl EdgeFunctions {
         cuts[n] = window[1];
         n += 1;
         let cuts = &mut cuts[..n];
-        cuts.sort_unstable_by(f64::total_cmp);
+        // Only the roots, all inside the window, can be out of order.
+        if n > 3 {
+            cuts[1..n - 1].sort_unstable_by(f64::total_cmp);
+        }
         let inside = |s: f64| {
             let values = coefficients.map(|[a, b, c]| (a * s + b) * s + c);
             let positive = values.iter().all(|&v| v >= 0.0);
