@@ -1050,7 +1050,7 @@ impl<'a> Prepared<'a> {
     }
 
     /// The mean irradiance over `span` of a still receiver (its `normal` and `point`, on
-    /// triangle `own`), weighted by the shutter: [`Prepared::irradiance`] with each light's
+    /// `item`), weighted by the shutter: [`Prepared::irradiance`] with each light's
     /// direction found once. A shadow map whose light gives it nothing, or that holds no nearer
     /// occluder in its texels over the span (`unshadowed` for the whole tile, else
     /// [`ShadowMap::surely_lit`]), leaves it lit; the others give the mean share of their light
@@ -1059,7 +1059,7 @@ impl<'a> Prepared<'a> {
         &self,
         (normal, point): (DVec3, DVec3),
         span: [f64; 2],
-        own: (u32, u32),
+        item: &Item,
         unshadowed: [bool; MAX_SHADOWED_LIGHTS],
     ) -> f64 {
         let lighting = &self.scene.lighting;
@@ -1081,6 +1081,7 @@ impl<'a> Prepared<'a> {
                 }
                 // Placed once, for the lit-for-sure test and the mean; behind its light a point
                 // takes no shadow from it.
+                let own = self.shadow_id(item);
                 match map.place(point, normal) {
                     Some(placed) if !map.surely_lit_between(placed, placed, span, own) => {
                         map.mean_visibility(placed, span, own, &self.scene.shutter) * light
@@ -1114,21 +1115,20 @@ impl<'a> Prepared<'a> {
         let [t0, t1] = segment.time;
         let fraction = |t: f64| if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
         let span = piece.t;
-        let own = self.shadow_id(item);
         if segment.still {
             // A plain face's surface from the tile's copy of its plane and shading.
-            let plain = tile
-                .of(piece.item)
-                .and_then(|entry| Some((entry.depth.hit_at_start(d), entry.plain?)));
+            let entry = tile.of(piece.item);
+            let plain = entry.and_then(|entry| Some((entry.depth.hit_at_start(d), entry.plain?)));
             let surface = match plain {
                 Some((hit, face)) => self.plain_surface_point(&hit, d, 0.0, &face),
                 None => self.surface_point(item, &self.corners(item), d, 0.0),
             };
-            let unshadowed = tile.unshadowed(piece.item);
+            let unshadowed = entry.map_or([false; MAX_SHADOWED_LIGHTS], |entry| entry.unshadowed);
             let irradiance =
-                self.still_irradiance((surface.normal, surface.point), span, own, unshadowed);
+                self.still_irradiance((surface.normal, surface.point), span, item, unshadowed);
             return surface.albedo.map(|c| c * irradiance);
         }
+        let own = self.shadow_id(item);
         let triangle = self.corners(item);
         // The receiver between the piece's ends: its point and normal interpolated linearly in
         // time (Palmér's sample interval), exact at the ends. Within a sub-segment the normal
