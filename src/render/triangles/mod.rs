@@ -698,11 +698,9 @@ impl<'a> Prepared<'a> {
         let w = (x1 - x0) as usize;
         let per_pixel = offsets.len();
         let [ix0, iy0, ix1, iy1] = self.items[index as usize].bounds;
-        // A moving triangle covers samples within the hull of its corners' screen paths
-        // only; the rest of its bounds are skipped a row at a time.
-        let hull = (!placed.still)
-            .then(|| screen_corners(camera, &placed.triangle, placed.window))
-            .flatten()
+        // A triangle covers samples within the hull of its corners' screen paths only; the
+        // rest of its bounds are skipped a row at a time.
+        let hull = screen_corners(camera, &placed.triangle, placed.window)
             .map(|corners| ScreenHull::new(&corners));
         let [nearest, _] = placed.triangle.depth_bounds();
         let no_tile = TileShared::default();
