@@ -116,21 +116,21 @@ impl Spot {
         })
     }
 
-    /// Irradiance scale along the unit direction `from_light` before the cosine law: the
-    /// intensity inside the cone, fading to 0 over its outer edge (smoothstep in the cosine of
-    /// the angle off the axis, which needs no arc cosine per shaded point), 0 outside.
+    /// Irradiance scale along `from_light` (of length `distance`, above 0) before the cosine
+    /// law: the intensity inside the cone, fading to 0 over its outer edge (smoothstep in the
+    /// cosine of the angle off the axis, which needs no arc cosine per shaded point), 0 outside.
+    /// The cone's edges are tested on the unnormalized cosine, so that only the ramp divides.
     #[must_use]
-    pub fn reach(&self, from_light: DVec3) -> f64 {
+    pub fn reach(&self, from_light: DVec3, distance: f64) -> f64 {
         let [outer, inner] = self.edge_cosines;
-        let cosine = from_light.dot(self.direction);
-        // Within the inner cone and outside the cone, what the ramp gives there, undivided.
-        if cosine >= inner {
+        let along = from_light.dot(self.direction);
+        if along >= inner * distance {
             return self.intensity;
         }
-        if cosine <= outer {
+        if along <= outer * distance {
             return 0.0;
         }
-        let x = ((cosine - outer) / (inner - outer)).clamp(0.0, 1.0);
+        let x = ((along / distance - outer) / (inner - outer)).clamp(0.0, 1.0);
         self.intensity * x * x * (3.0 - 2.0 * x)
     }
 }
@@ -257,15 +257,6 @@ impl LightSource<'_> {
         }
     }
 
-    /// Unit vector from world point `p` towards the light.
-    #[must_use]
-    pub fn towards(&self, p: DVec3) -> DVec3 {
-        match self {
-            LightSource::Directional(l) => l.direction,
-            LightSource::Spot(s) => (s.position - p).normalize_or_zero(),
-        }
-    }
-
     /// N·(L − p) towards a spot at L, N·L towards a directional light: the sign of the cosine
     /// at world point `p` on a surface with `normal` (of any length), without normalizing. Linear
     /// in `p` and in the normal, so exactly quadratic in time where both move linearly (Palmér
@@ -282,13 +273,20 @@ impl LightSource<'_> {
     /// reach there (a spot's within its cone) times max(0, N·L).
     #[must_use]
     pub fn irradiance(&self, normal: DVec3, p: DVec3) -> f64 {
-        let towards = self.towards(p);
-        let reach = match self {
-            LightSource::Directional(l) => l.intensity,
-            // A point at the light itself has no direction: its cosine is 0.
-            LightSource::Spot(s) => s.reach(-towards),
-        };
-        reach * normal.dot(towards).max(0.0)
+        match self {
+            LightSource::Directional(l) => l.intensity * normal.dot(l.direction).max(0.0),
+            LightSource::Spot(s) => {
+                // N·L unnormalized first: a surface facing away (or a point at the light
+                // itself) takes no light and no square root.
+                let to_light = s.position - p;
+                let facing = normal.dot(to_light);
+                if !(facing > 0.0) {
+                    return 0.0;
+                }
+                let distance = to_light.length();
+                s.reach(-to_light, distance) * facing / distance
+            }
+        }
     }
 }
 
@@ -519,22 +517,22 @@ mod tests {
     #[test]
     fn a_spot_reaches_fully_within_its_inner_cone_and_fades_to_nothing_over_its_edge() {
         let spot = Spot::new(DVec3::ZERO, -DVec3::Z, 30.0, 0.8, false).unwrap();
-        // A direction `degrees` off the axis.
+        // A point 2.5 from the spot, `degrees` off the axis.
         let off_axis = |degrees: f64| {
             let a = degrees.to_radians();
-            DVec3::new(a.sin(), 0.0, -a.cos())
+            DVec3::new(a.sin(), 0.0, -a.cos()) * 2.5
         };
         let inner = (1.0 - SPOT_EDGE) * 30.0;
         for degrees in [0.0, 10.0, inner - 1e-9] {
-            assert_eq!(spot.reach(off_axis(degrees)), 0.8, "{degrees}°");
+            assert_eq!(spot.reach(off_axis(degrees), 2.5), 0.8, "{degrees}°");
         }
         for degrees in [30.0 + 1e-9, 45.0, 120.0] {
-            assert_eq!(spot.reach(off_axis(degrees)), 0.0, "{degrees}°");
+            assert_eq!(spot.reach(off_axis(degrees), 2.5), 0.0, "{degrees}°");
         }
         // Across the edge, the smoothstep of the cosine: strictly falling, 0.4 half-way in
         // cosine.
         let ramp: Vec<f64> = (1..10)
-            .map(|k| spot.reach(off_axis(inner + (30.0 - inner) * f64::from(k) / 10.0)))
+            .map(|k| spot.reach(off_axis(inner + (30.0 - inner) * f64::from(k) / 10.0), 2.5))
             .collect();
         assert!(
             ramp.windows(2)
@@ -543,7 +541,7 @@ mod tests {
         );
         let [outer_cos, inner_cos] = spot.edge_cosines;
         let middle = (0.5 * (outer_cos + inner_cos)).acos();
-        let half = spot.reach(DVec3::new(middle.sin(), 0.0, -middle.cos()));
+        let half = spot.reach(DVec3::new(middle.sin(), 0.0, -middle.cos()), 1.0);
         assert!((half - 0.4).abs() < 1e-12, "{half}");
     }
 

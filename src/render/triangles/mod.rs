@@ -1984,7 +1984,6 @@ struct Scratch {
     covered_all_along: Vec<f64>,
     resolving: ResolveScratch,
     visible: Vec<Interval>,
-    covered: Vec<[f64; 2]>,
     /// One covered interval's depth pieces, before they enter a list.
     pieces: Vec<Interval>,
     shading: ShadingScratch,
@@ -2025,7 +2024,7 @@ impl Scratch {
 
     /// Insert the intervals during which the placed triangle covers `sample`, with their
     /// depth, in absolute time: as linear depth pieces at once or as the line between exact
-    /// ends, per `depth`; `pieces` cuts a list's intervals into linear depth pieces where a full
+    /// ends, per `depth`; `bent` cuts a list's intervals into linear depth pieces where a full
     /// list is resolved.
     #[allow(clippy::too_many_arguments)]
     fn insert(
@@ -2035,7 +2034,7 @@ impl Scratch {
         d: DVec3,
         item: u32,
         depth: DepthPieces,
-        pieces: &impl BentDepth,
+        bent: &impl BentDepth,
         stats: &mut TriangleStats,
     ) {
         let Placed {
@@ -2066,41 +2065,42 @@ impl Scratch {
                     item,
                     bends: false,
                 };
-                self.push(sample, interval, pieces, stats);
+                self.push(sample, interval, bent, stats);
             }
             return;
         }
-        self.covered.clear();
-        edges.covered(d, window, &mut self.covered);
         let along = placed.depth.along(d);
-        for k in 0..self.covered.len() {
-            let span = self.covered[k];
-            self.pieces.clear();
-            let tolerance = placed.depth_tolerance;
-            let cut = match depth {
+        let tolerance = placed.depth_tolerance;
+        edges.covered(d, window, |start, end| {
+            let span = [start, end];
+            match depth {
                 DepthPieces::AtOnce => {
+                    self.pieces.clear();
                     let pieces = &mut self.pieces;
-                    depth_pieces(&along, span, placed.time, item, tolerance, &mut |p| {
+                    let cut = depth_pieces(&along, span, placed.time, item, tolerance, &mut |p| {
                         pieces.push(p);
-                    })
-                }
-                DepthPieces::OnDemand => along.line(span, tolerance).map(|(depth, bends)| {
-                    self.pieces.push(Interval {
-                        t: span.map(|s| t0 + (t1 - t0) * s),
-                        depth,
-                        item,
-                        bends,
                     });
-                }),
-            };
-            if cut.is_none() {
-                continue;
+                    if cut.is_some() {
+                        for j in 0..self.pieces.len() {
+                            let interval = self.pieces[j];
+                            self.push(sample, interval, bent, stats);
+                        }
+                    }
+                }
+                // One line per span, pushed as it is made.
+                DepthPieces::OnDemand => {
+                    if let Some((depth, bends)) = along.line(span, tolerance) {
+                        let interval = Interval {
+                            t: span.map(|s| t0 + (t1 - t0) * s),
+                            depth,
+                            item,
+                            bends,
+                        };
+                        self.push(sample, interval, bent, stats);
+                    }
+                }
             }
-            for j in 0..self.pieces.len() {
-                let interval = self.pieces[j];
-                self.push(sample, interval, pieces, stats);
-            }
-        }
+        });
     }
 
     /// Add one interval to a sample's list, compressing a full list first (its intervals cut
