@@ -246,24 +246,28 @@ pub fn resolve(
         return;
     }
     let mut kept = std::mem::take(&mut scratch.kept);
-    if without_hidden(intervals, depth, scratch, &mut kept) {
+    let left_out = without_hidden(intervals, depth, scratch, &mut kept);
+    let layered = left_out && {
         order_by_start(&kept, &mut scratch.by_start);
-        let layered = two_layers(
+        two_layers(
             &kept,
             &scratch.by_start,
             depth,
             &mut scratch.ranges,
             &mut scratch.layers,
-        );
-        if layered {
-            resolve_layers(&kept, &scratch.by_start, &scratch.layers, out);
-            scratch.kept = kept;
-            return;
-        }
+        )
+    };
+    if layered {
+        resolve_layers(&kept, &scratch.by_start, &scratch.layers, out);
+    }
+    scratch.kept = kept;
+    if layered {
+        return;
+    }
+    if left_out {
         // The sweep reads the whole list's order.
         order_by_start(intervals, &mut scratch.by_start);
     }
-    scratch.kept = kept;
     if intervals.iter().any(|i| i.bends) {
         let mut cut = std::mem::take(&mut scratch.pieces);
         cut.clear();

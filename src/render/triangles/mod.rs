@@ -1048,9 +1048,8 @@ impl<'a> Prepared<'a> {
     }
 
     /// The mean irradiance over `span` of a still receiver (its `normal` and `point`, on
-    /// `item`), weighted by the shutter: [`Prepared::irradiance`] with each light's
-    /// direction found once. A shadow map whose light gives it nothing, or that holds no nearer
-    /// occluder in its texels over the span (`unshadowed` for the whole tile, else
+    /// `item`), weighted by the shutter. A shadow map whose light gives it nothing, or that holds
+    /// no nearer occluder in its texels over the span (`unshadowed` for the whole tile, else
     /// [`ShadowMap::surely_lit`]), leaves it lit; the others give the mean share of their light
     /// over the span in closed form ([`ShadowMap::mean_visibility`]), and light is linear in it.
     fn still_irradiance(
@@ -1060,35 +1059,20 @@ impl<'a> Prepared<'a> {
         item: &Item,
         unshadowed: [bool; MAX_SHADOWED_LIGHTS],
     ) -> f64 {
-        let lighting = &self.scene.lighting;
-        if !lighting.is_lit() {
-            return 1.0;
-        }
-        let mut maps = self.shadows.iter().zip(unshadowed);
-        let direct: f64 = self
-            .sources
-            .iter()
-            .map(|source| {
-                let light = source.irradiance(normal, point);
-                let Some((map, unshadowed)) = source.shadows().then(|| maps.next()).flatten()
-                else {
-                    return light;
-                };
-                if unshadowed || !(light > 0.0) {
-                    return light;
+        self.irradiance_with(normal, point, |k| {
+            let (Some(map), Some(false)) = (self.shadows.get(k), unshadowed.get(k).copied()) else {
+                return 1.0;
+            };
+            // Placed once, for the lit-for-sure test and the mean; behind its light a point
+            // takes no shadow from it.
+            let own = self.shadow_id(item);
+            match map.place(point, normal) {
+                Some(placed) if !map.surely_lit_between(placed, placed, span, own) => {
+                    map.mean_visibility(placed, span, own, &self.scene.shutter)
                 }
-                // Placed once, for the lit-for-sure test and the mean; behind its light a point
-                // takes no shadow from it.
-                let own = self.shadow_id(item);
-                match map.place(point, normal) {
-                    Some(placed) if !map.surely_lit_between(placed, placed, span, own) => {
-                        map.mean_visibility(placed, span, own, &self.scene.shutter) * light
-                    }
-                    _ => light,
-                }
-            })
-            .sum();
-        lighting.ambient + direct
+                _ => 1.0,
+            }
+        })
     }
 
     /// Mean colour of a visible piece, weighted by the shutter. A still triangle's piece is shaded
@@ -1121,7 +1105,7 @@ impl<'a> Prepared<'a> {
                 Some((hit, face)) => self.plain_surface_point(&hit, d, 0.0, &face),
                 None => self.surface_point(item, &self.corners(item), d, 0.0),
             };
-            let unshadowed = entry.map_or([false; MAX_SHADOWED_LIGHTS], |entry| entry.unshadowed);
+            let unshadowed = unshadowed_of(entry);
             let irradiance =
                 self.still_irradiance((surface.normal, surface.point), span, item, unshadowed);
             return surface.albedo.map(|c| c * irradiance);
@@ -1507,21 +1491,31 @@ impl<'a> Prepared<'a> {
     /// Lambertian irradiance at world point `p` with unit `normal`: ambient plus each light's
     /// reach × max(0, N·L), the shadowed ones scaled by their share in `visibility`. 1 unlit.
     fn irradiance(&self, normal: DVec3, p: DVec3, visibility: &[f64]) -> f64 {
+        self.irradiance_with(normal, p, |k| visibility.get(k).copied().unwrap_or(1.0))
+    }
+
+    /// [`Prepared::irradiance`] with the share of the k-th shadowed light from `share(k)`, asked
+    /// only where that light reaches the point (a share of nothing is not worked out).
+    fn irradiance_with(&self, normal: DVec3, p: DVec3, mut share: impl FnMut(usize) -> f64) -> f64 {
         let lighting = &self.scene.lighting;
         if !lighting.is_lit() {
             return 1.0;
         }
-        let mut shadowed = visibility.iter();
+        let mut shadowed = 0;
         let direct: f64 = self
             .sources
             .iter()
             .map(|source| {
-                let share = if source.shadows() {
-                    shadowed.next().copied().unwrap_or(1.0)
+                let light = source.irradiance(normal, p);
+                if !source.shadows() {
+                    return light;
+                }
+                shadowed += 1;
+                if light > 0.0 {
+                    share(shadowed - 1) * light
                 } else {
-                    1.0
-                };
-                share * source.irradiance(normal, p)
+                    light
+                }
             })
             .sum();
         lighting.ambient + direct
@@ -1902,9 +1896,13 @@ impl TileShared {
 
     /// [`TileItem::unshadowed`] of item `item` (none where the tile does not hold it).
     fn unshadowed(&self, item: u32) -> [bool; MAX_SHADOWED_LIGHTS] {
-        self.of(item)
-            .map_or([false; MAX_SHADOWED_LIGHTS], |entry| entry.unshadowed)
+        unshadowed_of(self.of(item))
     }
+}
+
+/// [`TileItem::unshadowed`] of a tile's `entry` for an item (none where it has none).
+fn unshadowed_of(entry: Option<&TileItem>) -> [bool; MAX_SHADOWED_LIGHTS] {
+    entry.map_or([false; MAX_SHADOWED_LIGHTS], |entry| entry.unshadowed)
 }
 
 /// One item of a tile, as its samples reuse it.

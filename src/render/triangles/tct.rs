@@ -381,9 +381,10 @@ impl RayDepth {
 
 impl EdgeFunctions {
     /// The sub-intervals of `window` (within [0, 1]) during which the ray along `d` is inside
-    /// the triangle, each handed to `span` (its start and end) in time order, apart. The roots of the three edge
-    /// quadratics cut the window; each piece is tested at its middle, so an inaccurate or double
-    /// root can move a boundary by its error but never turn a piece inside out.
+    /// the triangle, each handed to `span` (its start and end) in time order, apart. The roots
+    /// of the three edge quadratics cut the window; each piece is tested at its middle, so an
+    /// inaccurate or double root can move a boundary by its error but never turn a piece inside
+    /// out.
     #[inline]
     pub fn covered(&self, d: DVec3, window: [f64; 2], mut span: impl FnMut(f64, f64)) {
         let mut cuts = [0.0f64; 8];
