@@ -168,17 +168,24 @@ impl Texture {
 
 /// Evaluates one footprint's profile at pixel offsets; made once per footprint and tile, so the
 /// texture's orientation is found once rather than per pixel.
-pub(super) enum Sampler<'a> {
+pub(super) struct Sampler<'a> {
+    kind: SamplerKind<'a>,
+    /// Rows of the map from a pixel offset to unit coordinates along the major and minor axes of
+    /// a texture; zero for every other profile. Kept outside the variants and always set: the
+    /// compiler hoists their products with a row's offset out of the pixel loop whatever the
+    /// profile, and the bytes a variant without them leaves there were at times subnormal
+    /// floats, whose every product takes a microcode assist (a third of `static`'s tile pass on
+    /// the torus knot, in spells that lasted as long as a thread's stack held them).
+    along: [f32; 2],
+    across: [f32; 2],
+}
+
+enum SamplerKind<'a> {
     /// exp(−q/2), interpolated in [`GAUSSIAN_TABLE`].
     Gaussian(&'static GaussianTable),
     Disc,
     Ring,
-    /// Rows of the map from a pixel offset to unit coordinates along the major and minor axes.
-    Texture {
-        texture: &'a Texture,
-        along: [f32; 2],
-        across: [f32; 2],
-    },
+    Texture(&'a Texture),
     /// A texture profile with no texture given: draws nothing.
     Blank,
 }
@@ -186,11 +193,16 @@ pub(super) enum Sampler<'a> {
 impl<'a> Sampler<'a> {
     /// The sampler for `profile` on a footprint with inverse covariance `conic` (xx, xy, yy).
     pub(super) fn new(profile: Profile, conic: [f32; 3], texture: Option<&'a Texture>) -> Self {
+        let untextured = |kind| Sampler {
+            kind,
+            along: [0.0; 2],
+            across: [0.0; 2],
+        };
         match (profile, texture) {
-            (Profile::Gaussian, _) => Sampler::Gaussian(&GAUSSIAN_TABLE),
-            (Profile::Disc, _) => Sampler::Disc,
-            (Profile::Ring, _) => Sampler::Ring,
-            (Profile::Texture, None) => Sampler::Blank,
+            (Profile::Gaussian, _) => untextured(SamplerKind::Gaussian(&GAUSSIAN_TABLE)),
+            (Profile::Disc, _) => untextured(SamplerKind::Disc),
+            (Profile::Ring, _) => untextured(SamplerKind::Ring),
+            (Profile::Texture, None) => untextured(SamplerKind::Blank),
             (Profile::Texture, Some(texture)) => {
                 // Eigenvectors of the conic: the smaller eigenvalue belongs to the major axis.
                 let [a, b, c] = conic.map(f64::from);
@@ -207,8 +219,8 @@ impl<'a> Sampler<'a> {
                 let minor = major.perp();
                 let along = major * small.max(0.0).sqrt();
                 let across = minor * large.max(0.0).sqrt();
-                Sampler::Texture {
-                    texture,
+                Sampler {
+                    kind: SamplerKind::Texture(texture),
                     along: along.as_vec2().to_array(),
                     across: across.as_vec2().to_array(),
                 }
@@ -221,22 +233,21 @@ impl<'a> Sampler<'a> {
     #[inline]
     pub(super) fn value(&self, [dx, dy]: [f32; 2], q: f32) -> f32 {
         let ramp = |x: f32| (x / EDGE_WIDTH + 0.5).clamp(0.0, 1.0);
-        match self {
-            Sampler::Gaussian(table) => exp_half(table, q),
-            Sampler::Disc => ramp(DISC_RADIUS - q.sqrt()),
-            Sampler::Ring => {
+        match self.kind {
+            SamplerKind::Gaussian(table) => exp_half(table, q),
+            SamplerKind::Disc => ramp(DISC_RADIUS - q.sqrt()),
+            SamplerKind::Ring => {
                 let r = q.sqrt();
                 ramp(r - RING_RADII[0]).min(ramp(RING_RADII[1] - r))
             }
-            Sampler::Texture {
-                texture,
-                along,
-                across,
-            } => texture.sample(
-                along[0] * dx + along[1] * dy,
-                across[0] * dx + across[1] * dy,
-            ),
-            Sampler::Blank => 0.0,
+            SamplerKind::Texture(texture) => {
+                let (along, across) = (self.along, self.across);
+                texture.sample(
+                    along[0] * dx + along[1] * dy,
+                    across[0] * dx + across[1] * dy,
+                )
+            }
+            SamplerKind::Blank => 0.0,
         }
     }
 }
