@@ -9,6 +9,7 @@ use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::io::image as output;
 use streak::io::obj::write_mesh;
 use streak::lod::Lod;
+use streak::metrics;
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
 use streak::render::{
     Receivers, Subframes, Visibility, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX, MAX_SAMPLES,
@@ -41,6 +42,23 @@ enum Command {
     /// Simplify a triangle mesh by quadric edge collapse, optionally weighted by a motion
     /// direction (Zhang et al. 2014), and write it as OBJ or PLY.
     Simplify(SimplifyArgs),
+    /// Compare an image with a reference: RMSE, PSNR, SSIM and ꟻLIP as `study` measures them,
+    /// and where they differ most.
+    Compare(CompareArgs),
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    /// The image measured (.exr linear, or .png sRGB).
+    test: PathBuf,
+    /// The image it is measured against, of the same size.
+    reference: PathBuf,
+    /// Also write |test − reference| × --gain per channel to this image (.png or .exr).
+    #[arg(long)]
+    diff: Option<PathBuf>,
+    /// Factor the difference image is multiplied by, so that small differences show.
+    #[arg(long, default_value_t = 10.0, requires = "diff")]
+    gain: f32,
 }
 
 #[derive(Args)]
@@ -239,6 +257,7 @@ pub fn run() -> Result<()> {
         Command::Study(a) => a.image.threads,
         Command::Gallery(a) => a.image.threads,
         Command::Simplify(a) => a.threads,
+        Command::Compare(_) => None,
     };
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
@@ -261,6 +280,7 @@ pub fn run() -> Result<()> {
         Command::Study(args) => run_study(args),
         Command::Gallery(args) => run_gallery(args),
         Command::Simplify(args) => run_simplify(args),
+        Command::Compare(args) => run_compare(args),
     })
 }
 
@@ -568,6 +588,55 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
         eprintln!("{}: {}", row.name, line.join(", "));
     }
     eprintln!("wrote {}", args.output.join("index.html").display());
+    Ok(())
+}
+
+fn run_compare(args: CompareArgs) -> Result<()> {
+    if !(args.gain.is_finite() && args.gain > 0.0) {
+        return Err(Error::Usage(format!(
+            "--gain {}: use a finite factor above 0 (10 shows differences of a tenth of a unit at \
+             full scale)",
+            args.gain
+        )));
+    }
+    let test = output::read_image(&args.test)?;
+    let reference = output::read_image(&args.reference)?;
+    let error = metrics::compare(&test, &reference)?;
+    let found = metrics::differences(&test, &reference)?;
+    let mut report = format!(
+        "{} against {} ({}×{}):\n  RMSE {:.4e}, PSNR {:.2} dB, SSIM {:.6}, ꟻLIP {:.5}\n",
+        args.test.display(),
+        args.reference.display(),
+        test.width,
+        test.height,
+        error.rmse,
+        error.psnr_db,
+        error.ssim,
+        error.flip
+    );
+    if found.pixels == 0 {
+        report += "  identical: every channel of every pixel has the same value\n";
+    } else {
+        let [x, y] = found.at;
+        report += &format!(
+            "  largest difference {:.4e} at pixel ({x}, {y}); {} of {} pixels differ\n",
+            found.largest,
+            found.pixels,
+            test.pixels.len()
+        );
+    }
+    if let Some(path) = &args.diff {
+        output::write_image(
+            &metrics::difference_image(&test, &reference, args.gain)?,
+            path,
+        )?;
+        report += &format!(
+            "wrote {} (|test − reference| × {})\n",
+            path.display(),
+            args.gain
+        );
+    }
+    print_quietly(&report);
     Ok(())
 }
 

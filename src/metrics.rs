@@ -37,21 +37,7 @@ pub struct ImageError {
 /// Errors with [`Error::Usage`] when the sizes differ, when an image is empty, or when an image
 /// holds a different number of pixels than its width × height.
 pub fn compare(test: &Framebuffer, reference: &Framebuffer) -> Result<ImageError> {
-    check_pixel_count(test, "test image")?;
-    check_pixel_count(reference, "reference image")?;
-    if (test.width, test.height) != (reference.width, reference.height) {
-        return Err(Error::Usage(format!(
-            "cannot compare a {}×{} image with a {}×{} reference: the sizes must match",
-            test.width, test.height, reference.width, reference.height
-        )));
-    }
-    if test.pixels.is_empty() {
-        return Err(Error::Usage(format!(
-            "cannot compare empty {}×{} images",
-            test.width, test.height
-        )));
-    }
-
+    check_comparable(test, reference)?;
     let (test_pixels, reference_pixels) = with_invalid_values_as_maximal_error(test, reference);
     let rmse = root_mean_square_difference(&test_pixels, &reference_pixels);
     let psnr_db = if rmse == 0.0 {
@@ -80,6 +66,80 @@ pub fn compare(test: &Framebuffer, reference: &Framebuffer) -> Result<ImageError
         ssim,
         flip,
     })
+}
+
+/// Where two images differ, channel by channel (a non-finite value counted as in [`compare`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Differences {
+    /// Largest absolute difference of one channel's linear value; 0 when identical.
+    pub largest: f32,
+    /// The pixel (x, y) holding it, the first in row order.
+    pub at: [u32; 2],
+    /// Pixels with any channel different.
+    pub pixels: usize,
+}
+
+/// The largest difference of `test` from `reference` and how many pixels differ. Errors as
+/// [`compare`] does.
+pub fn differences(test: &Framebuffer, reference: &Framebuffer) -> Result<Differences> {
+    check_comparable(test, reference)?;
+    let (test_pixels, reference_pixels) = with_invalid_values_as_maximal_error(test, reference);
+    let mut found = Differences {
+        largest: 0.0,
+        at: [0, 0],
+        pixels: 0,
+    };
+    for (i, (t, r)) in test_pixels.iter().zip(&reference_pixels).enumerate() {
+        let largest = (0..3).map(|c| (t[c] - r[c]).abs()).fold(0.0, f32::max);
+        if largest > 0.0 {
+            found.pixels += 1;
+        }
+        if largest > found.largest {
+            let width = test.width as usize;
+            found.largest = largest;
+            found.at = [(i % width) as u32, (i / width) as u32];
+        }
+    }
+    Ok(found)
+}
+
+/// |`test` − `reference`| per channel times `gain`, for looking at where two images differ.
+/// Errors as [`compare`] does.
+pub fn difference_image(
+    test: &Framebuffer,
+    reference: &Framebuffer,
+    gain: f32,
+) -> Result<Framebuffer> {
+    check_comparable(test, reference)?;
+    let (test_pixels, reference_pixels) = with_invalid_values_as_maximal_error(test, reference);
+    Ok(Framebuffer {
+        width: test.width,
+        height: test.height,
+        pixels: test_pixels
+            .iter()
+            .zip(&reference_pixels)
+            .map(|(t, r)| std::array::from_fn(|c| (t[c] - r[c]).abs() * gain))
+            .collect(),
+    })
+}
+
+/// Both images hold their width × height pixels, the sizes match, and they are not empty.
+fn check_comparable(test: &Framebuffer, reference: &Framebuffer) -> Result<()> {
+    check_pixel_count(test, "test image")?;
+    check_pixel_count(reference, "reference image")?;
+    if (test.width, test.height) != (reference.width, reference.height) {
+        return Err(Error::Usage(format!(
+            "cannot compare a {}×{} image with a {}×{} reference: the sizes must match",
+            test.width, test.height, reference.width, reference.height
+        )));
+    }
+    if test.pixels.is_empty() {
+        return Err(Error::Usage(format!(
+            "cannot compare empty {}×{} images",
+            test.width, test.height
+        )));
+    }
+    Ok(())
 }
 
 fn check_pixel_count(image: &Framebuffer, role: &str) -> Result<()> {

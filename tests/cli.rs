@@ -640,3 +640,47 @@ fn the_surfel_budget_is_the_whole_scene_s_and_can_be_raised() {
         "{stderr}"
     );
 }
+
+#[test]
+fn compare_reports_the_error_and_where_it_is_largest() {
+    use streak::io::image::write_exr;
+    use streak::Framebuffer;
+    let dir = workdir("compare");
+    let reference = Framebuffer::filled(8, 4, [0.5; 3]);
+    let mut test = reference.clone();
+    // Pixel (3, 2), green channel: RMSE = √(0.25² / (3 · 32)) = 0.025516.
+    test.pixels[2 * 8 + 3][1] += 0.25;
+    write_exr(&reference, &dir.join("reference.exr")).unwrap();
+    write_exr(&test, &dir.join("test.exr")).unwrap();
+
+    let out = streak(
+        &[
+            "compare",
+            "test.exr",
+            "reference.exr",
+            "--diff",
+            "diff.exr",
+            "--gain",
+            "2",
+        ],
+        &dir,
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}{:?}", out.stderr);
+    assert!(stdout.contains("RMSE 2.5516e-2"), "{stdout}");
+    assert!(
+        stdout.contains("largest difference 2.5000e-1 at pixel (3, 2); 1 of 32 pixels differ"),
+        "{stdout}"
+    );
+    let diff = streak::io::image::read_exr(&dir.join("diff.exr")).unwrap();
+    assert_eq!(diff.pixels[2 * 8 + 3], [0.0, 0.5, 0.0]);
+    assert_eq!(diff.pixels.iter().filter(|p| **p != [0.0; 3]).count(), 1);
+
+    let same = streak(&["compare", "test.exr", "test.exr"], &dir);
+    assert!(String::from_utf8_lossy(&same.stdout).contains("identical"));
+
+    write_exr(&Framebuffer::filled(4, 4, [0.5; 3]), &dir.join("small.exr")).unwrap();
+    let mismatch = streak(&["compare", "small.exr", "reference.exr"], &dir);
+    assert!(!mismatch.status.success());
+    assert!(String::from_utf8_lossy(&mismatch.stderr).contains("the sizes must match"));
+}

@@ -2,6 +2,7 @@
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
+use crate::scene::camera::MAX_IMAGE_SIDE;
 use std::path::Path;
 
 /// The kinds of image file written.
@@ -88,15 +89,64 @@ pub fn write_exr(image: &Framebuffer, path: &Path) -> Result<()> {
 
 /// Read a linear float OpenEXR written by [`write_exr`].
 pub fn read_exr(path: &Path) -> Result<Framebuffer> {
-    let decoded = image::open(path)
-        .map_err(|e| image_error(path, e))?
-        .into_rgb32f();
-    let (width, height) = decoded.dimensions();
+    let (width, height, pixels) = decode(path)?;
     Ok(Framebuffer {
         width,
         height,
-        pixels: decoded.pixels().map(|p| p.0).collect(),
+        pixels,
     })
+}
+
+/// Read an image as linear RGB, as its file name says: `.exr` as stored, `.png` (any bit depth and
+/// channel layout; alpha is ignored) decoded from sRGB. A PNG that [`write_png`] wrote reads back
+/// to values that encode to the same 8-bit codes.
+pub fn read_image(path: &Path) -> Result<Framebuffer> {
+    match ImageKind::of(path)? {
+        ImageKind::Exr => read_exr(path),
+        ImageKind::Png => {
+            let (width, height, encoded) = decode(path)?;
+            Ok(Framebuffer {
+                width,
+                height,
+                pixels: encoded
+                    .into_iter()
+                    .map(|p| p.map(|v| srgb_to_linear(f64::from(v))))
+                    .collect(),
+            })
+        }
+    }
+}
+
+/// An image file's size and RGB values as stored, within the image crate's default limits (at
+/// most 512 MiB decoded) and [`MAX_IMAGE_SIDE`] on each side.
+fn decode(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
+    let decoded = image::ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?
+        .decode()
+        .map_err(|e| image_error(path, e))?
+        .into_rgb32f();
+    let (width, height) = decoded.dimensions();
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+        return Err(Error::Usage(format!(
+            "{}: {width}×{height} is larger than streak reads (at most {MAX_IMAGE_SIDE} pixels a \
+             side)",
+            path.display()
+        )));
+    }
+    Ok((width, height, decoded.pixels().map(|p| p.0).collect()))
+}
+
+/// The sRGB transfer curve inverted (IEC 61966-2-1): the linear value of an encoded one in
+/// [0, 1].
+pub(crate) fn srgb_to_linear(encoded: f64) -> f32 {
+    let linear = if encoded <= 0.04045 {
+        encoded / 12.92
+    } else {
+        ((encoded + 0.055) / 1.055).powf(2.4)
+    };
+    linear as f32
 }
 
 /// Linear→sRGB 8-bit encoding used by PNG output and by the metrics (one function for the whole crate).
@@ -162,6 +212,32 @@ mod tests {
         let back = read_exr(&path).unwrap();
         std::fs::remove_file(&path).ok();
         assert_eq!(back, image);
+    }
+
+    #[test]
+    fn every_8_bit_code_reads_back_to_itself() {
+        for code in 0..=255u8 {
+            let linear = srgb_to_linear(f64::from(code) / 255.0);
+            assert_eq!(
+                linear_to_srgb8(linear),
+                code,
+                "code {code} read as {linear}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_png_reads_back_to_the_codes_written() {
+        let mut image = Framebuffer::filled(4, 2, [0.0, 0.5, 1.0]);
+        image.pixels[5] = [0.003, 0.2, 0.9];
+        let path = std::env::temp_dir().join(format!("streak-png-{}.png", std::process::id()));
+        write_png(&image, &path).unwrap();
+        let back = read_image(&path).unwrap();
+        std::fs::remove_file(&path).ok();
+        assert_eq!((back.width, back.height), (4, 2));
+        for (read, written) in back.pixels.iter().zip(&image.pixels) {
+            assert_eq!(read.map(linear_to_srgb8), written.map(linear_to_srgb8));
+        }
     }
 
     #[test]

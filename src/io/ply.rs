@@ -6,6 +6,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
+use super::image::srgb_to_linear;
 use super::read::read_file;
 use crate::error::{Error, Result};
 use crate::surfels::cloud::PointCloud;
@@ -725,7 +726,7 @@ impl CloudBuilder {
             for (out, (property, encoding)) in rgb.iter_mut().zip(channels) {
                 let value = finite(property)?;
                 *out = match encoding {
-                    ColorEncoding::Srgb8 => srgb8_to_linear(value),
+                    ColorEncoding::Srgb8 => srgb_to_linear(value / 255.0),
                     ColorEncoding::Linear if (0.0..=1.0).contains(&value) => value as f32,
                     ColorEncoding::Linear => {
                         return Err(Error::input(
@@ -761,17 +762,6 @@ impl CloudBuilder {
     fn finish(self) -> PointCloud {
         self.cloud
     }
-}
-
-/// The sRGB transfer function inverted, for an 8-bit channel value in 0..=255.
-fn srgb8_to_linear(value: f64) -> f32 {
-    let encoded = value / 255.0;
-    let linear = if encoded <= 0.04045 {
-        encoded / 12.92
-    } else {
-        ((encoded + 0.055) / 1.055).powf(2.4)
-    };
-    linear as f32
 }
 
 /// Where a body reader puts one record's values.
