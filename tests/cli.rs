@@ -683,4 +683,24 @@ fn compare_reports_the_error_and_where_it_is_largest() {
     let mismatch = streak(&["compare", "small.exr", "reference.exr"], &dir);
     assert!(!mismatch.status.success());
     assert!(String::from_utf8_lossy(&mismatch.stderr).contains("the sizes must match"));
+
+    // A 65-byte PNG whose header claims 100,000 × 100,000 pixels (30 GB as RGB floats) is refused
+    // from its header.
+    std::fs::write(dir.join("huge.png"), HUGE_PNG).unwrap();
+    let huge = streak(&["compare", "huge.png", "reference.exr"], &dir);
+    assert!(!huge.status.success());
+    let stderr = String::from_utf8_lossy(&huge.stderr);
+    assert!(
+        stderr.contains("huge.png") && stderr.contains("at most 8192 pixels a side"),
+        "{stderr}"
+    );
 }
+
+/// A PNG signature, an IHDR chunk for 100,000 × 100,000 8-bit RGB, an empty IDAT and IEND.
+const HUGE_PNG: [u8; 65] = [
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52,
+    0x00, 0x01, 0x86, 0xa0, 0x00, 0x01, 0x86, 0xa0, 0x08, 0x02, 0x00, 0x00, 0x00, 0x27, 0x30, 0x9c,
+    0x9f, 0x00, 0x00, 0x00, 0x08, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00,
+    0x01, 0x48, 0x06, 0x89, 0xd2, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60,
+    0x82,
+];

@@ -117,25 +117,29 @@ pub fn read_image(path: &Path) -> Result<Framebuffer> {
     }
 }
 
-/// An image file's size and RGB values as stored, within the image crate's default limits (at
-/// most 512 MiB decoded) and [`MAX_IMAGE_SIDE`] on each side.
+/// An image file's size and RGB values as stored: at most [`MAX_IMAGE_SIDE`] pixels a side,
+/// refused from the header before anything is decoded, within the image crate's default bound on
+/// what a decoder allocates (512 MiB).
 fn decode(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
-    let decoded = image::ImageReader::open(path)
+    let mut reader = image::ImageReader::open(path)
         .map_err(|e| Error::io(path, e))?
         .with_guessed_format()
-        .map_err(|e| Error::io(path, e))?
-        .decode()
-        .map_err(|e| image_error(path, e))?
-        .into_rgb32f();
-    let (width, height) = decoded.dimensions();
-    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
-        return Err(Error::Usage(format!(
-            "{}: {width}×{height} is larger than streak reads (at most {MAX_IMAGE_SIDE} pixels a \
-             side)",
+        .map_err(|e| Error::io(path, e))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    reader.limits(limits);
+    let decoded = reader.decode().map_err(|e| match e {
+        image::ImageError::Limits(_) => Error::Usage(format!(
+            "{}: larger than streak reads (at most {MAX_IMAGE_SIDE} pixels a side, 512 MiB \
+             decoded)",
             path.display()
-        )));
-    }
-    Ok((width, height, decoded.pixels().map(|p| p.0).collect()))
+        )),
+        other => image_error(path, other),
+    })?;
+    let rgb = decoded.into_rgb32f();
+    let (width, height) = rgb.dimensions();
+    Ok((width, height, rgb.pixels().map(|p| p.0).collect()))
 }
 
 /// The sRGB transfer curve inverted (IEC 61966-2-1): the linear value of an encoded one in
