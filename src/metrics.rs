@@ -82,15 +82,14 @@ pub struct Differences {
 /// The largest difference of `test` from `reference` and how many pixels differ. Errors as
 /// [`compare`] does.
 pub fn differences(test: &Framebuffer, reference: &Framebuffer) -> Result<Differences> {
-    check_comparable(test, reference)?;
-    let (test_pixels, reference_pixels) = with_invalid_values_as_maximal_error(test, reference);
+    let difference = difference_image(test, reference, 1.0)?;
     let mut found = Differences {
         largest: 0.0,
         at: [0, 0],
         pixels: 0,
     };
-    for (i, (t, r)) in test_pixels.iter().zip(&reference_pixels).enumerate() {
-        let largest = (0..3).map(|c| (t[c] - r[c]).abs()).fold(0.0, f32::max);
+    for (i, pixel) in difference.pixels.iter().enumerate() {
+        let largest = pixel.iter().copied().fold(0.0, f32::max);
         if largest > 0.0 {
             found.pixels += 1;
         }

@@ -313,25 +313,34 @@ impl ShadowMap {
     /// `[x0, y0, x1, y1)` lies nearer than `depth`: a receiver that reads only those texels
     /// and lies no deeper is lit throughout.
     fn surely_lit_within(&self, texels: [u32; 4], depth: f64, own: (u32, u32)) -> bool {
-        f64::from(self.nearest_within(texels).except(own)) >= depth
+        self.records_within(texels)
+            .all(|nearest| f64::from(nearest.except(own)) >= depth)
     }
 
-    /// The merged records of the tiles holding texels `[x0, y0, x1, y1)` (clamped to the map).
-    fn nearest_within(&self, [x0, y0, x1, y1]: [u32; 4]) -> Nearest {
+    /// The merged records of the tiles holding texels `[x0, y0, x1, y1)`.
+    fn nearest_within(&self, texels: [u32; 4]) -> Nearest {
+        self.records_within(texels)
+            .fold(Nearest::NONE, |nearest, tile| nearest.merge(tile))
+    }
+
+    /// The records of the tiles holding texels `[x0, y0, x1, y1)` (clamped to the map).
+    fn records_within(&self, [x0, y0, x1, y1]: [u32; 4]) -> impl Iterator<Item = Nearest> + '_ {
         let side = self.occluders.camera.width;
         let (x1, y1) = (x1.min(side), y1.min(side));
-        if x0 >= x1 || y0 >= y1 {
-            return Nearest::NONE;
-        }
         let tile_px = crate::raster::TILE_PX;
-        let mut nearest = Nearest::NONE;
-        for ty in y0 / tile_px..(y1 - 1) / tile_px + 1 {
-            for tx in x0 / tile_px..(x1 - 1) / tile_px + 1 {
-                let tile = self.tile_of(tx * tile_px, ty * tile_px);
-                nearest = nearest.merge(self.nearest_in_tile[tile]);
-            }
-        }
-        nearest
+        let (rows, columns) = if x0 >= x1 || y0 >= y1 {
+            (0..0, 0..0)
+        } else {
+            (
+                y0 / tile_px..(y1 - 1) / tile_px + 1,
+                x0 / tile_px..(x1 - 1) / tile_px + 1,
+            )
+        };
+        rows.flat_map(move |ty| {
+            columns
+                .clone()
+                .map(move |tx| self.nearest_in_tile[self.tile_of(tx * tile_px, ty * tile_px)])
+        })
     }
 
     /// Tiles of the map.
