@@ -2,7 +2,8 @@
 //!
 //! The ternary depth test groups footprints into surfaces (a footprint within the larger of its
 //! own and the open group's depth tolerance of the group's depth belongs to it); a group's colour
-//! is the normalized Σwc/Σw, and the share of the pixel it covers is counted per time bin: it
+//! is the normalized Σwc/Σw, each member's w counted for the share of its time the groups in front
+//! leave it seen, and the share of the pixel it covers is counted per time bin: it
 //! hides what lies behind it only in the bins in which it covers the pixel, so that time-disjoint
 //! coverage of a sliding surface adds up instead of stacking as transparent layers. With one bin
 //! (an instant) this is plain front-to-back compositing with α = opacity(Σw). Why bins, with the
@@ -101,9 +102,11 @@ pub(super) struct PixelState<const B: usize> {
     remaining: f32,
     /// Depth of the group that first left less than [`VISIBLE_REMAINDER`] unoccluded.
     front_depth: f32,
+    /// Σ w · seen · colour over the open group's members ([`Self::add`]).
     group_colour: [f32; 3],
     /// Light added by additive footprints of the open group.
     group_emission: [f32; 3],
+    /// Σ w · seen: what `group_colour` is normalized by.
     group_weight: f32,
     /// Per bin, the depth and tolerance the group's chain of footprints has reached there (∞ where
     /// none covers it): the surface's depth at that time.
@@ -132,6 +135,26 @@ impl BinSpan {
     #[inline]
     fn bins(&self) -> std::ops::Range<usize> {
         self.first..self.last
+    }
+
+    /// Overlap × shutter mass in the first and the last bin, where the window spans two bins or
+    /// more: it covers the first from u0 and the last up to u1, and every bin between them whole.
+    /// `None` for a window within one bin (or too short to spread).
+    #[inline]
+    fn end_masses<const B: usize>(&self, bins: &TimeBins<B>) -> Option<[f32; 2]> {
+        let Self {
+            first,
+            last,
+            u0,
+            u1,
+        } = *self;
+        if last == first + 1 || u1 - u0 < 1e-4 {
+            return None;
+        }
+        Some([
+            larger(first as f32 + 1.0 - u0, 0.0) * bins.mass[first],
+            larger(u1 - (last - 1) as f32, 0.0) * bins.mass[last - 1],
+        ])
     }
 }
 
@@ -169,22 +192,39 @@ impl<const B: usize> PixelState<B> {
     /// time farther back starts a new one. A footprint that meets the group at no time cannot be
     /// hidden by it and joins. With one bin this is the ternary test chained from each footprint
     /// to the next.
+    ///
+    /// What groups closed before leave unoccluded over the footprint's time window, its share
+    /// `seen`, weights its colour in the group's mean: a surface passing behind another shows
+    /// the colour it has while it is seen, not while it is hidden. A footprint hidden over its
+    /// whole window is left out: it can neither show nor split the group in front (docs/math.md,
+    /// "Time bins for coverage"). Returns `seen` (0 when left out; 1 with one bin, where every
+    /// member of a group sees the same).
     #[inline(always)]
-    pub(super) fn add(&mut self, f: &Footprint, w: f32, [x, y]: [u32; 2], bins: &TimeBins<B>) {
+    pub(super) fn add(
+        &mut self,
+        f: &Footprint,
+        w: f32,
+        [x, y]: [u32; 2],
+        bins: &TimeBins<B>,
+    ) -> f32 {
         // One bin is an instant: the footprint's depth at the pixel holds all of it.
-        let (span, depth, step) = if B == 1 {
+        let (span, depth, step, mut seen) = if B == 1 {
             let whole = BinSpan {
                 first: 0,
                 last: 1,
                 u0: 0.0,
                 u1: 1.0,
             };
-            (whole, f.depth_at(x, y), 0.0)
+            (whole, f.depth_at(x, y), 0.0, 1.0)
         } else {
             let passage = f.passage_at(x, y);
             let span = bin_span(passage.window, bins);
+            let seen = self.seen_share(&span, bins);
+            if seen < OPAQUE_REMAINDER {
+                return 0.0;
+            }
             let (depth, step) = depths_in_bins(&passage, &span, bins);
-            (span, depth, step)
+            (span, depth, step, seen)
         };
         let mut in_bin = depth;
         let same_surface = self.group_depth[span.bins()]
@@ -197,6 +237,13 @@ impl<const B: usize> PixelState<B> {
             });
         if !same_surface {
             self.close_group(bins);
+            // The group just closed lies in front of `f`.
+            if B > 1 {
+                seen = self.seen_share(&span, bins);
+                if seen < OPAQUE_REMAINDER {
+                    return 0.0;
+                }
+            }
         }
         self.group_bins = [
             self.group_bins[0].min(span.first),
@@ -207,30 +254,67 @@ impl<const B: usize> PixelState<B> {
             for c in 0..3 {
                 self.group_emission[c] += w * f.colour[c];
             }
-            return;
+            return seen;
         }
+        let shown = w * seen;
         for c in 0..3 {
-            self.group_colour[c] += w * f.colour[c];
+            self.group_colour[c] += shown * f.colour[c];
         }
-        self.group_weight += w;
+        self.group_weight += shown;
         if B == 1 {
             self.group_coverage[0] += w;
         } else {
             self.deposit(w, &span, bins);
         }
+        seen
+    }
+
+    /// The share of `span` that the groups closed so far leave unoccluded, each bin counted by
+    /// its overlap × shutter mass, as [`Self::deposit`] spreads a footprint's weight.
+    #[inline]
+    fn seen_share(&self, span: &BinSpan, bins: &TimeBins<B>) -> f32 {
+        // Nothing in front yet: the first surface at a pixel, most footprints, sees it all.
+        if self.remaining == 1.0 {
+            return 1.0;
+        }
+        let transmittance = &self.transmittance;
+        let Some([head, tail]) = span.end_masses(bins) else {
+            return transmittance[span.first];
+        };
+        let (first, last) = (span.first, span.last);
+        let (mut seen, mut mass) = (
+            head * transmittance[first] + tail * transmittance[last - 1],
+            head + tail,
+        );
+        for (&t, &m) in transmittance[first + 1..last - 1]
+            .iter()
+            .zip(&bins.mass[first + 1..last - 1])
+        {
+            seen += t * m;
+            mass += m;
+        }
+        if mass > 0.0 {
+            seen / mass
+        } else {
+            transmittance[first]
+        }
     }
 
     /// Add `change` to the colour of the footprint just added (its colour's change along a
-    /// streak, weighted by its light there), as emission when it is `additive`.
+    /// streak, weighted by its light there), as emission when it is `additive`; `seen` is what
+    /// [`Self::add`] returned for it, which weights its colour as it weighted the rest.
     #[inline(always)]
-    pub(super) fn add_colour_change(&mut self, additive: bool, change: [f32; 3]) {
-        let sums = if additive {
-            &mut self.group_emission
+    pub(super) fn add_colour_change(&mut self, additive: bool, change: [f32; 3], seen: f32) {
+        if seen == 0.0 {
+            return;
+        }
+        let (sums, scale) = if additive {
+            (&mut self.group_emission, 1.0)
         } else {
-            &mut self.group_colour
+            (&mut self.group_colour, seen)
         };
         for (sum, change) in sums.iter_mut().zip(change) {
-            *sum += change;
+            *sum += scale * change;
         }
     }
 
@@ -258,21 +342,13 @@ impl<const B: usize> PixelState<B> {
     /// Spread `w` over the bins of `span`, in proportion to the overlap × shutter mass there.
     #[inline]
     fn deposit(&mut self, w: f32, span: &BinSpan, bins: &TimeBins<B>) {
-        let BinSpan {
-            first,
-            last,
-            u0,
-            u1,
-        } = *span;
-        if last == first + 1 || u1 - u0 < 1e-4 {
+        let (first, last) = (span.first, span.last);
+        let Some([head, tail]) = span.end_masses(bins) else {
             self.group_coverage[first] += w;
             return;
-        }
-        // The window spans two bins or more: it covers the first from u0 and the last up to u1,
-        // and every bin between them whole. Those get `scale` × their mass each, marked at the
-        // run's ends only, so a wide window costs no more than a narrow one.
-        let head = larger(first as f32 + 1.0 - u0, 0.0) * bins.mass[first];
-        let tail = larger(u1 - (last - 1) as f32, 0.0) * bins.mass[last - 1];
+        };
+        // Every bin between the first and the last gets `scale` × its mass, marked at the run's
+        // ends only, so a wide window costs no more than a narrow one.
         let inner = bins.mass_before[last - 1] - bins.mass_before[first + 1];
         let total = head + tail + inner;
         if total > 0.0 {
@@ -498,6 +574,27 @@ mod tests {
         // With one bin the same coverage is treated as stacked layers: the background leaks.
         let leaky = composite(&[red, green], &TimeBins::INSTANT);
         assert!((leaky[2] - 0.25).abs() < 1e-5, "{leaky:?}");
+    }
+
+    #[test]
+    fn a_surface_behind_shows_the_colours_it_has_while_seen() {
+        // Red (nearer) covers the pixel for a quarter or a half of the exposure. Behind it one
+        // surface is yellow during the first half and green during the second: the pixel shows
+        // each colour for the time it is seen, exactly, and the background never. Weighting the
+        // far surface's colours by their whole weights mixed in the yellow hidden behind red.
+        let bins = TimeBins::<16>::over(&Shutter::default());
+        let yellow = layer(0.5, [1.0, 1.0, 0.0], 2.0, [0.0, 0.5]);
+        let green = layer(0.5, [0.0, 1.0, 0.0], 2.0, [0.5, 1.0]);
+        for red_until in [0.25f32, 0.5] {
+            let red = layer(red_until, [1.0, 0.0, 0.0], 1.0, [0.0, f64::from(red_until)]);
+            let p = composite(&[red, yellow, green], &bins);
+            let yellow_seen = 0.5 - red_until;
+            let expected = [red_until + yellow_seen, yellow_seen + 0.5, 0.0];
+            assert!(
+                (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
+                "red until {red_until}: {p:?} against {expected:?}"
+            );
+        }
     }
 
     #[test]
