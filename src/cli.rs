@@ -57,7 +57,12 @@ struct CompareArgs {
     #[arg(long)]
     diff: Option<PathBuf>,
     /// Factor the difference image is multiplied by, so that small differences show.
-    #[arg(long, default_value_t = 10.0, requires = "diff")]
+    #[arg(
+        long,
+        default_value_t = 10.0,
+        requires = "diff",
+        allow_hyphen_values = true
+    )]
     gain: f32,
 }
 
@@ -79,7 +84,6 @@ struct SimplifyArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        num_args = 3,
         allow_hyphen_values = true,
         conflicts_with = "isotropic"
     )]
@@ -112,10 +116,11 @@ enum MethodName {
 /// Options shared by every command that renders.
 #[derive(Args)]
 struct ImageArgs {
-    /// Image width in pixels (overrides the scene; the vertical field of view is kept).
+    /// Image width in pixels, with --height (overrides the scene; the vertical field of view is
+    /// kept).
     #[arg(long, requires = "height")]
     width: Option<u32>,
-    /// Image height in pixels (overrides the scene).
+    /// Image height in pixels, with --width (overrides the scene).
     #[arg(long, requires = "width")]
     height: Option<u32>,
     /// Worker threads (default: all cores). The image is the same whatever the count.
@@ -158,11 +163,11 @@ struct RenderArgs {
     #[arg(long, value_parser = sample_count())]
     samples: Option<usize>,
     /// Instant drawn by `static`, in normalized frame time [0, 1] (default: mid-exposure).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     time: Option<f64>,
     /// Screen tolerance for the linear sub-segments of curved paths, px (`blur`, `hint`,
     /// `kernel3d` without `--subframes`, and `analytic`) [default: 1; `analytic` 0.1].
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     tolerance: Option<f64>,
     /// Style file for `hint` (default: the scene's `style`, else the built-in default style).
     #[arg(long)]
@@ -355,6 +360,16 @@ fn method(args: &RenderArgs, scene: &Scene) -> Result<Method> {
     )?;
     only(args.approximate, "--approximate", &[MethodName::Kernel3d])?;
     only(args.traced, "--traced", &[MethodName::Analytic])?;
+    // Other methods sample triangles into surfels and draw no spatial samples.
+    only(
+        args.image.spatial_samples.is_some(),
+        "--spatial-samples",
+        &[
+            MethodName::Static,
+            MethodName::Reference,
+            MethodName::Analytic,
+        ],
+    )?;
     only(
         args.tolerance.is_some(),
         "--tolerance",
@@ -448,6 +463,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
         LodName::Off => Lod::Off,
     };
     let plan = Plan::with_lod(&scene, &method, lod).map_err(as_option)?;
+    if matches!(method, Method::Analytic { .. }) && !plan.any_triangles() {
+        eprintln!(
+            "note: no object of {} is drawn as triangles (`draw = \"triangles\"` on a mesh); \
+             -m analytic draws its surfels as -m blur does",
+            args.scene.display()
+        );
+    }
     let progress = match method {
         Method::Reference { samples } => Some(bar(samples as u64, "reference frames")),
         _ => None,
@@ -690,7 +712,11 @@ fn run_simplify(args: SimplifyArgs) -> Result<()> {
         result.mesh.triangles.len(),
         result.mesh.positions.len(),
     );
-    if result.mesh.triangles.len() + 1 == target {
+    if target >= faces_in {
+        report += &format!(
+            "  nothing to collapse: the mesh has {faces_in} faces, no more than the {target} asked for\n"
+        );
+    } else if result.mesh.triangles.len() + 1 == target {
         report += &format!(
             "  one below {target}: a collapse inside the surface takes two faces, and no edge on a boundary could take the last one (a closed surface always has an even count)\n"
         );

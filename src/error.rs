@@ -71,6 +71,25 @@ impl Error {
         }
     }
 
+    /// This error as met reading a file that `field` of `file` names: a file that cannot be read
+    /// becomes an [`Error::Input`] on `file` at `field` ("cannot read …"), so that the message
+    /// says which setting named it; a mistake inside the named file stays as it is, naming that
+    /// file.
+    #[must_use]
+    pub fn named_by(self, file: &Path, field: &str) -> Self {
+        match self {
+            Error::Io {
+                file: named,
+                source,
+            } => Error::Input {
+                file: file.to_path_buf(),
+                field: field.to_string(),
+                message: format!("cannot read {}: {source}", named.display()),
+            },
+            other => other,
+        }
+    }
+
     /// An I/O error on `file`.
     pub fn io(file: &Path, source: std::io::Error) -> Self {
         Error::Io {

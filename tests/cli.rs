@@ -301,7 +301,13 @@ shape = { type = "ply", path = "cloud.ply" }
 
 #[test]
 fn unreadable_and_malformed_ply_files_are_rejected() {
-    rejected("ply-missing", PLY_SCENE, &[], &["cloud.ply"]);
+    // A file the scene names but that is not there: the scene and the field that named it.
+    rejected(
+        "ply-missing",
+        PLY_SCENE,
+        &[],
+        &["scene.toml: object[0].shape.path: cannot read", "cloud.ply"],
+    );
     rejected(
         "ply-garbage",
         PLY_SCENE,
@@ -365,6 +371,12 @@ fn a_volume_renders_and_its_mistakes_name_the_field() {
     let blob = blob();
     let (ok, stderr) = render_scene("volume", VOLUME_SCENE, &[("blob.raw", &blob)]);
     assert!(ok, "{stderr}");
+    rejected(
+        "volume-missing",
+        VOLUME_SCENE,
+        &[],
+        &["scene.toml: object[0].shape.path: cannot read", "blob.raw"],
+    );
     rejected(
         "volume-size",
         VOLUME_SCENE,
@@ -437,6 +449,22 @@ fn command_line_mistakes_are_explained() {
         (
             vec!["render", "scene.toml", "--tolerance", "1000"],
             "--tolerance 1000: must be between",
+        ),
+        // A negative value is a value, not an option.
+        (
+            vec!["render", "scene.toml", "--tolerance", "-1"],
+            "--tolerance -1: must be between",
+        ),
+        (
+            vec![
+                "render",
+                "scene.toml",
+                "-m",
+                "blur",
+                "--spatial-samples",
+                "4",
+            ],
+            "--spatial-samples applies to -m static and -m reference and -m analytic only",
         ),
     ] {
         let out = streak(&args, &dir);
@@ -694,6 +722,51 @@ fn compare_reports_the_error_and_where_it_is_largest() {
         stderr.contains("huge.png") && stderr.contains("at most 8192 pixels a side"),
         "{stderr}"
     );
+}
+
+#[test]
+fn simplify_takes_a_direction_as_x_y_z() {
+    // A flat 4 × 4 grid of squares, 32 triangles, facing +z.
+    let dir = workdir("simplify");
+    let mut obj = String::new();
+    for j in 0..5 {
+        for i in 0..5 {
+            obj += &format!("v {i} {j} 0\n");
+        }
+    }
+    for j in 0..4 {
+        for i in 0..4 {
+            let a = j * 5 + i + 1;
+            obj += &format!("f {a} {} {}\nf {a} {} {}\n", a + 1, a + 6, a + 6, a + 5);
+        }
+    }
+    std::fs::write(dir.join("grid.obj"), obj).unwrap();
+    let run = |direction: &str| {
+        streak(
+            &[
+                "simplify",
+                "grid.obj",
+                "-o",
+                "out.obj",
+                "--faces",
+                "2",
+                "--direction",
+                direction,
+            ],
+            &dir,
+        )
+    };
+    let out = run("1,0,0");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let written = std::fs::read_to_string(dir.join("out.obj")).unwrap();
+    assert_eq!(written.lines().filter(|l| l.starts_with("f ")).count(), 2);
+    let wrong = run("1,0");
+    assert!(!wrong.status.success());
+    assert!(String::from_utf8_lossy(&wrong.stderr).contains("X,Y,Z"));
 }
 
 /// A PNG signature, an IHDR chunk for 100,000 × 100,000 8-bit RGB, an empty IDAT and IEND.

@@ -334,7 +334,7 @@ impl MeshShape {
             )
             .map_err(|e| e.in_file(file, ""))?;
         let path = base.join(&self.path);
-        let mesh = Mesh::read(&path)?;
+        let mesh = Mesh::read(&path).map_err(|e| e.named_by(file, &format!("{field}.path")))?;
         let centre = self.centre.unwrap_or(true);
         let surfels = from_mesh(&mesh, count, centre).map_err(|e| e.in_file(&path, ""))?;
         let offset = match (centre, mesh.bounds()) {
@@ -412,7 +412,8 @@ impl VolumeShape {
             dimensions[axis] = n as usize;
         }
         voxel_count(dimensions).map_err(|e| e.in_file(file, field))?;
-        let volume = Volume::read(&base.join(&self.path), dimensions, voxel)?;
+        let volume = Volume::read(&base.join(&self.path), dimensions, voxel)
+            .map_err(|e| e.named_by(file, &format!("{field}.path")))?;
         let surface = IsoSurface {
             iso: self.iso,
             spacing: DVec3::from_array(self.spacing.unwrap_or([1.0; 3])),
@@ -455,13 +456,9 @@ impl Scene {
         let Some(path) = &self.style else {
             return Ok(None);
         };
-        Style::load(path).map(Some).map_err(|e| match e {
-            Error::Io { file, source } => Error::Input {
-                file: self.source.clone().unwrap_or_else(|| file.clone()),
-                field: "style".into(),
-                message: format!("cannot read {}: {source}", file.display()),
-            },
-            other => other,
+        Style::load(path).map(Some).map_err(|e| match &self.source {
+            Some(scene) => e.named_by(scene, "style"),
+            None => e,
         })
     }
 }
@@ -694,7 +691,8 @@ fn object_surfels(
             let neighbours = check_neighbours(neighbours.unwrap_or(DEFAULT_NEIGHBOURS))
                 .map_err(|e| e.in_file(path, &shape_field))?;
             let file = base.join(file);
-            let cloud = read_ply(&file)?;
+            let cloud =
+                read_ply(&file).map_err(|e| e.named_by(path, &format!("{shape_field}.path")))?;
             let points = cloud.positions.len();
             budget
                 .allow(
