@@ -7,6 +7,9 @@
 /// share of it.
 pub const JOIN_TOLERANCE: f64 = 1e-9;
 
+/// Longest list of intervals whose hidden members [`resolve`] looks for before sweeping.
+const MOST_SCANNED_FOR_HIDDEN: usize = 32;
+
 /// One linear piece of a surface's depth over a time interval at one sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Interval {
@@ -246,7 +249,11 @@ pub fn resolve(
         return;
     }
     let mut kept = std::mem::take(&mut scratch.kept);
-    let left_out = without_hidden(intervals, depth, scratch, &mut kept);
+    // Leaving out what is hidden pays where a few faces meet at an edge (a cube's corner). It
+    // compares every pair, and on a long list (many small faces passing the sample) the sweep
+    // alone costs less (docs/history.md, "Long lists left to the sweep").
+    let left_out = intervals.len() <= MOST_SCANNED_FOR_HIDDEN
+        && without_hidden(intervals, depth, scratch, &mut kept);
     let layered = left_out && {
         order_by_start(&kept, &mut scratch.by_start);
         two_layers(
