@@ -624,7 +624,8 @@ fn run_compare(args: CompareArgs) -> Result<()> {
     let test = output::read_image(&args.test)?;
     let reference = output::read_image(&args.reference)?;
     let error = metrics::compare(&test, &reference)?;
-    let found = metrics::differences(&test, &reference)?;
+    let mut difference = metrics::difference_image(&test, &reference)?;
+    let found = metrics::Differences::of(&difference);
     let mut report = format!(
         "{} against {} ({}×{}):\n  RMSE {:.4e}, PSNR {:.2} dB, SSIM {:.6}, ꟻLIP {:.5}\n",
         args.test.display(),
@@ -648,10 +649,10 @@ fn run_compare(args: CompareArgs) -> Result<()> {
         );
     }
     if let Some(path) = &args.diff {
-        output::write_image(
-            &metrics::difference_image(&test, &reference, args.gain)?,
-            path,
-        )?;
+        for pixel in &mut difference.pixels {
+            *pixel = pixel.map(|c| c * args.gain);
+        }
+        output::write_image(&difference, path)?;
         report += &format!(
             "wrote {} (|test − reference| × {})\n",
             path.display(),

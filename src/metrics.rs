@@ -79,36 +79,32 @@ pub struct Differences {
     pub pixels: usize,
 }
 
-/// The largest difference of `test` from `reference` and how many pixels differ. Errors as
-/// [`compare`] does.
-pub fn differences(test: &Framebuffer, reference: &Framebuffer) -> Result<Differences> {
-    let difference = difference_image(test, reference, 1.0)?;
-    let mut found = Differences {
-        largest: 0.0,
-        at: [0, 0],
-        pixels: 0,
-    };
-    for (i, pixel) in difference.pixels.iter().enumerate() {
-        let largest = pixel.iter().copied().fold(0.0, f32::max);
-        if largest > 0.0 {
-            found.pixels += 1;
+impl Differences {
+    /// The largest difference and how many pixels differ, in a [`difference_image`].
+    #[must_use]
+    pub fn of(difference: &Framebuffer) -> Differences {
+        let mut found = Differences {
+            largest: 0.0,
+            at: [0, 0],
+            pixels: 0,
+        };
+        let width = difference.width as usize;
+        for (i, pixel) in difference.pixels.iter().enumerate() {
+            let largest = pixel.iter().copied().fold(0.0, f32::max);
+            if largest > 0.0 {
+                found.pixels += 1;
+            }
+            if largest > found.largest {
+                found.largest = largest;
+                found.at = [(i % width) as u32, (i / width) as u32];
+            }
         }
-        if largest > found.largest {
-            let width = test.width as usize;
-            found.largest = largest;
-            found.at = [(i % width) as u32, (i / width) as u32];
-        }
+        found
     }
-    Ok(found)
 }
 
-/// |`test` − `reference`| per channel times `gain`, for looking at where two images differ.
-/// Errors as [`compare`] does.
-pub fn difference_image(
-    test: &Framebuffer,
-    reference: &Framebuffer,
-    gain: f32,
-) -> Result<Framebuffer> {
+/// |`test` − `reference`| per channel. Errors as [`compare`] does.
+pub fn difference_image(test: &Framebuffer, reference: &Framebuffer) -> Result<Framebuffer> {
     check_comparable(test, reference)?;
     let (test_pixels, reference_pixels) = with_invalid_values_as_maximal_error(test, reference);
     Ok(Framebuffer {
@@ -117,7 +113,7 @@ pub fn difference_image(
         pixels: test_pixels
             .iter()
             .zip(&reference_pixels)
-            .map(|(t, r)| std::array::from_fn(|c| (t[c] - r[c]).abs() * gain))
+            .map(|(t, r)| std::array::from_fn(|c| (t[c] - r[c]).abs()))
             .collect(),
     })
 }
