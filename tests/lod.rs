@@ -124,6 +124,40 @@ fn edges_along_the_motion_stay_sharp_and_detail_along_it_blurs_as_it_would() {
 }
 
 #[test]
+fn surfels_wider_than_a_pixel_merge_across_the_motion_only_within_their_own_blur() {
+    // Surfels 0.1 units apart (2.2 px, σ about 2 px) in squares of 1 unit (22 px) sliding 4 units
+    // (90 px): cells one pixel wide would gather too few of them to pay, so cells across the
+    // motion are two of the surfels' own σ wide (`ACROSS_SIGMAS`).
+    let camera = camera(200, 120);
+    let board = scene(
+        camera.clone(),
+        vec![object(
+            checkerboard([3.0, 2.0], 0.1, 1.0),
+            linear(DVec3::new(-2.0, 0.0, 0.0), DVec3::new(2.0, 0.0, 0.0)),
+        )],
+    );
+    let (full, _) = draw_with(&board, &Method::BLUR, Lod::Off);
+    let (merged, outcome) = draw_with(&board, &Method::BLUR, Lod::Auto);
+    assert!(merged_by(&outcome) > 2.0, "{outcome:?}");
+    let LodOutcome::Merged { widest_cell_px, .. } = outcome else {
+        unreachable!()
+    };
+    assert!((2.0..8.0).contains(&widest_cell_px), "{widest_cell_px}");
+    // Where red meets blue along the motion, the surfels' own Gaussians already spread the edge
+    // over several pixels; members within 2σ across add at most a third to that variance (cells
+    // 2.7 px wide here: 0.024 at worst). Cells of 8σ (10.7 px) move the edge by 0.094.
+    let edge_row = (0.5 * f64::from(camera.height)) as usize;
+    let worst = (edge_row - 3..edge_row + 3)
+        .flat_map(|y| (60..140).map(move |x| y * 200 + x))
+        .flat_map(|i| (0..3).map(move |c| (i, c)))
+        .map(|(i, c)| (full.pixels[i][c] - merged.pixels[i][c]).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst < 0.05, "{worst}");
+    let error = rmse(&merged, &full);
+    assert!(error < 0.01, "RMSE {error}");
+}
+
+#[test]
 fn objects_whose_surfels_cover_a_pixel_are_drawn_at_full_detail() {
     // 0.1 units apart: 2.2 px.
     let still_patch = scene(
