@@ -93,8 +93,9 @@ pub const CELL_PX: f64 = 1.0;
 /// where that is wider than [`CELL_PX`] (and never wider than the cell is long). Members spread
 /// across a width w add at most w²/12 to the merged Gaussian's variance there, a third of a
 /// surfel's own at 2σ. From the sweep in docs/math.md, "Level of detail": at 2σ objects whose
-/// surfels are 1.4–4.5 px wide merge, `blur` on the gallery scenes takes 1.1–3.6× less time, and
-/// RMSE against the converged reference moves by −0.6 % to +1.9 %; at 3σ the bunny's rose 15 %.
+/// surfels are 1.4–4.5 px wide merge and `blur` on the gallery scenes takes 1.1–3.9× less time;
+/// RMSE against the converged reference rises by up to 21 % (`engine_rotating`, 2× faster), by
+/// up to 1.9 % at half size; at 3σ the bunny's rose 15 % more.
 pub const ACROSS_SIGMAS: f64 = 2.0;
 
 /// Longest cell along the motion, px: a merged surfel is a flat ellipse, and a long one would
