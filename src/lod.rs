@@ -239,12 +239,13 @@ pub fn merge(
 
     // The depth layer: the ternary depth test's tolerance for a typical surfel, doubled.
     let layer = 2.0 * DEPTH_TOLERANCE_SIGMAS * median_sigma(&instants[middle], surfels);
-    let mut grid = Grid {
+    let probes = probe_sizes(camera, &instants, middle, surfels);
+    let grid = Grid {
         camera,
         instants: &instants,
         middle,
         cell,
-        across: cell,
+        across: probes.map_or(cell, |p| cell.max(ACROSS_SIGMAS * p.sigma_px * shrink)),
         longest: MAX_CELL_PX * shrink,
         layer,
         along_fraction: match cells {
@@ -253,10 +254,6 @@ pub fn merge(
         },
     };
     // A merge must gather several surfels to pay for the pass that finds it.
-    let probes = probe_sizes(camera, &instants, middle, surfels);
-    if let Some(p) = probes {
-        grid.across = cell.max(ACROSS_SIGMAS * p.sigma_px * shrink);
-    }
     match probes {
         Some(probes) if grid.worth_merging(&probes) => {}
         probes => {
@@ -482,8 +479,7 @@ fn probe_sizes(
     let step = (surfels.len() / SIZE_PROBES).max(1);
     let scale = instants[middle].view_vector(DVec3::X).length();
     let screen = |instant: &Instant, s: &Surfel| camera.project(instant.view_point(s.position));
-    let mut sigmas = Vec::new();
-    let (mut sizes, mut paths): (Vec<f64>, Vec<f64>) = surfels
+    let probed: Vec<[f64; 3]> = surfels
         .iter()
         .step_by(step)
         .filter_map(|s| {
@@ -494,32 +490,44 @@ fn probe_sizes(
                 .collect();
             let path: f64 = points?.windows(2).map(|w| w[0].distance(w[1])).sum();
             let px_per_unit = scale * camera.focal_px / depth;
-            sigmas.push(s.axis_u.length().max(s.axis_v.length()) * px_per_unit);
-            Some((s.area.sqrt() * px_per_unit, path))
+            Some([
+                s.area.sqrt() * px_per_unit,
+                path,
+                longer_axis(s) * px_per_unit,
+            ])
         })
-        .unzip();
-    let median = |values: &mut Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        values.get(values.len() / 2).copied()
-    };
+        .collect();
+    let median_of = |k: usize| median(probed.iter().map(|p| p[k]).collect());
     Some(Probes {
-        surfel_px: median(&mut sizes)?,
-        path_px: median(&mut paths)?,
-        sigma_px: median(&mut sigmas)?,
+        surfel_px: median_of(0)?,
+        path_px: median_of(1)?,
+        sigma_px: median_of(2)?,
     })
+}
+
+/// The median of `values` (the upper one of an even count), `None` when there are none.
+fn median(mut values: Vec<f64>) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied()
+}
+
+/// A surfel's standard deviation along its longer axis, scene units.
+fn longer_axis(s: &Surfel) -> f64 {
+    s.axis_u.length().max(s.axis_v.length())
 }
 
 /// Median standard deviation of the surfels' Gaussians in scene units.
 fn median_sigma(instant: &Instant, surfels: &[Surfel]) -> f64 {
     let step = (surfels.len() / SIZE_PROBES).max(1);
     let scale = instant.view_vector(DVec3::X).length();
-    let mut sigmas: Vec<f64> = surfels
-        .iter()
-        .step_by(step)
-        .map(|s| s.axis_u.length().max(s.axis_v.length()) * scale)
-        .collect();
-    sigmas.sort_by(f64::total_cmp);
-    sigmas.get(sigmas.len() / 2).copied().unwrap_or(0.0)
+    median(
+        surfels
+            .iter()
+            .step_by(step)
+            .map(|s| longer_axis(s) * scale)
+            .collect(),
+    )
+    .unwrap_or(0.0)
 }
 
 /// Append the merge of `group` (`count` surfels) to `out`: one surfel with the group's area, its
