@@ -24,7 +24,7 @@ use glam::DVec2;
 use profile::Sampler;
 use rayon::prelude::*;
 use streak::{StreakGeometry, StreakRows};
-pub(crate) use tiles::{TileGrid, TileLists};
+pub(crate) use tiles::{costliest_first, TileGrid, TileLists};
 
 /// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², docs/math.md "Projected splat covariance").
 /// 0.3 px² keeps every footprint at least ~0.55 px wide, so sampling at pixel centres sums even the
@@ -777,32 +777,29 @@ fn tile_pass<const B: usize, T: Send>(
     // A tile no footprint reaches is clear, without setting up and finishing its pixel states.
     let mut empty = PixelState::<B>::EMPTY;
     let clear = empty.finish(bins);
-    // One task per band: rayon's adaptive split would otherwise leave a thread idle when the
-    // work gathers in a few bands.
-    bands
-        .with_max_len(1)
-        .enumerate()
-        .for_each(|(ty, mut band)| {
-            let mut scratch = TileScratch::default();
-            let band_start = ty * band_len(target.width);
-            for tile in grid.row(ty) {
-                let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
-                let list = lists.list(tile);
-                let pixels: &mut [PixelState<B>] = if list.is_empty() {
-                    &mut []
-                } else {
-                    render_tile(footprints, list, bounds, target, bins, &mut scratch)
-                };
-                let w = (x1 - x0) as usize;
-                for r in 0..(y1 - y0) as usize {
-                    let start = r * width + x0 as usize;
-                    for i in 0..w {
-                        let finished = pixels.get_mut(r * w + i).map_or(clear, |p| p.finish(bins));
-                        write(&mut band, start + i, band_start + start + i, finished);
-                    }
+    let bands: Vec<T> = bands.collect();
+    let band_cost = |ty| lists.row_entries(&grid, ty);
+    tiles::costliest_first(bands, band_cost, |ty, mut band| {
+        let mut scratch = TileScratch::default();
+        let band_start = ty * band_len(target.width);
+        for tile in grid.row(ty) {
+            let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
+            let list = lists.list(tile);
+            let pixels: &mut [PixelState<B>] = if list.is_empty() {
+                &mut []
+            } else {
+                render_tile(footprints, list, bounds, target, bins, &mut scratch)
+            };
+            let w = (x1 - x0) as usize;
+            for r in 0..(y1 - y0) as usize {
+                let start = r * width + x0 as usize;
+                for i in 0..w {
+                    let finished = pixels.get_mut(r * w + i).map_or(clear, |p| p.finish(bins));
+                    write(&mut band, start + i, band_start + start + i, finished);
                 }
             }
-        });
+        }
+    });
     RasterStats {
         footprints: footprints.len(),
         tile_entries: lists.entries(),

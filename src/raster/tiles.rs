@@ -4,6 +4,8 @@
 
 use super::TILE_PX;
 use rayon::prelude::*;
+use std::cmp::Reverse;
+use std::sync::{Mutex, PoisonError};
 
 /// The image cut into tiles, row by row: tile `ty · tiles_x + tx` covers the pixels from
 /// (tx, ty)·[`TILE_PX`], cut at the image's edges.
@@ -77,6 +79,36 @@ impl TileGrid {
     }
 }
 
+/// `work(index, item)` for each of `items` in parallel, the results in item order. Items are
+/// handed out one at a time, the costliest first (by `cost` of the index, ties in index order), to
+/// whichever thread is free: an image's work gathers in the tiles its objects cover, and rayon's
+/// halving split of the items in image order can leave one thread the last heavy rows while the
+/// others wait. Which thread runs an item changes nothing in its result.
+pub(crate) fn costliest_first<T: Send, R: Send>(
+    items: Vec<T>,
+    cost: impl Fn(usize) -> usize,
+    work: impl Fn(usize, T) -> R + Sync,
+) -> Vec<R> {
+    let count = items.len();
+    let mut queue: Vec<(usize, T)> = items.into_iter().enumerate().collect();
+    queue.sort_by_key(|&(index, _)| (Reverse(cost(index)), index));
+    let queue = Mutex::new(queue.into_iter());
+    let next = || queue.lock().unwrap_or_else(PoisonError::into_inner).next();
+    let mut done: Vec<(usize, R)> = (0..rayon::current_num_threads().min(count))
+        .into_par_iter()
+        .with_max_len(1)
+        .flat_map_iter(|_| {
+            let mut done = Vec::new();
+            while let Some((index, item)) = next() {
+                done.push((index, work(index, item)));
+            }
+            done
+        })
+        .collect();
+    done.sort_unstable_by_key(|&(index, _)| index);
+    done.into_iter().map(|(_, result)| result).collect()
+}
+
 /// Items binned per tile in fixed chunks of this many, in parallel; the chunks' lists are then
 /// joined in item order, so the lists do not depend on the thread count.
 const BINNING_CHUNK: usize = 1 << 13;
@@ -132,6 +164,12 @@ impl TileLists {
         &self.entries[self.starts[tile]..self.starts[tile + 1]]
     }
 
+    /// Item–tile pairs in the tiles of tile row `ty`.
+    pub(crate) fn row_entries(&self, grid: &TileGrid, ty: usize) -> usize {
+        let tiles = grid.row(ty);
+        self.starts[tiles.end] - self.starts[tiles.start]
+    }
+
     /// Item–tile pairs in all.
     pub(crate) fn entries(&self) -> usize {
         self.entries.len()
@@ -180,6 +218,22 @@ mod tests {
             let expected: Vec<u32> = (tile as u32..many as u32).step_by(6).collect();
             assert_eq!(lists.list(tile), expected.as_slice());
         }
+        // Rows handed out costliest first come back in row order, each worked on once.
+        let rows: Vec<usize> = (0..40).collect();
+        let visits = std::sync::atomic::AtomicUsize::new(0);
+        let done = costliest_first(
+            rows,
+            |row| row % 7,
+            |row, item| {
+                visits.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                (row, item * 2)
+            },
+        );
+        assert_eq!(visits.into_inner(), 40);
+        assert!(done
+            .iter()
+            .enumerate()
+            .all(|(i, &(row, twice))| row == i && twice == 2 * i));
         let mut image = vec![usize::MAX; 800];
         grid.scatter(&blocks, image.par_chunks_mut(40), |row, x, &value| {
             row[x] = value

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::raster::TILE_PX;
-use crate::raster::{TileGrid, TileLists};
+use crate::raster::{costliest_first, TileGrid, TileLists};
 use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMesh};
 use intervals::{resolve, AsIs, BentDepth, Interval, ResolveScratch};
@@ -532,39 +532,36 @@ impl<'a> Prepared<'a> {
         let mut hidden_beyond = self
             .occludes_surfels
             .then(|| vec![f32::INFINITY; width as usize * height as usize]);
-        let mut hidden_bands: Vec<Option<&mut [f32]>> = match &mut hidden_beyond {
+        let hidden_bands: Vec<Option<&mut [f32]>> = match &mut hidden_beyond {
             Some(hidden) => hidden.chunks_mut(band).map(Some).collect(),
             None => (0..image.pixels.len().div_ceil(band))
                 .map(|_| None)
                 .collect(),
         };
         let pool = ScratchPool::default();
-        let stats: Vec<TriangleStats> = (image.pixels.par_chunks_mut(band))
-            .zip(hidden_bands.par_iter_mut())
-            .with_max_len(1)
-            .enumerate()
-            .map(|(ty, (pixels, hidden))| {
-                pool.with(|scratch| {
-                    let mut stats = TriangleStats::default();
-                    for tile in grid.row(ty) {
-                        let bounds = grid.pixels(tile);
-                        self.render_tile(lists.list(tile), bounds, &offsets, scratch, &mut stats);
-                        let [x0, y0, x1, _] = bounds;
-                        let w = (x1 - x0) as usize;
-                        for (i, (colour, hide)) in scratch.pixels.iter().enumerate() {
-                            let at = (i / w + (y0 - ty as u32 * TILE_PX) as usize) * width as usize
-                                + x0 as usize
-                                + i % w;
-                            pixels[at] = *colour;
-                            if let Some(hidden) = hidden {
-                                hidden[at] = *hide;
-                            }
+        let bands: Vec<_> = image.pixels.chunks_mut(band).zip(hidden_bands).collect();
+        let band_cost = |ty| lists.row_entries(&grid, ty);
+        let stats = costliest_first(bands, band_cost, |ty, (pixels, mut hidden)| {
+            pool.with(|scratch| {
+                let mut stats = TriangleStats::default();
+                for tile in grid.row(ty) {
+                    let bounds = grid.pixels(tile);
+                    self.render_tile(lists.list(tile), bounds, &offsets, scratch, &mut stats);
+                    let [x0, y0, x1, _] = bounds;
+                    let w = (x1 - x0) as usize;
+                    for (i, (colour, hide)) in scratch.pixels.iter().enumerate() {
+                        let at = (i / w + (y0 - ty as u32 * TILE_PX) as usize) * width as usize
+                            + x0 as usize
+                            + i % w;
+                        pixels[at] = *colour;
+                        if let Some(hidden) = &mut hidden {
+                            hidden[at] = *hide;
                         }
                     }
-                    stats
-                })
+                }
+                stats
             })
-            .collect();
+        });
         let mut total = TriangleStats {
             items: self.items.len(),
             behind_near: self.behind_near,
