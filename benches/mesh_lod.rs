@@ -237,7 +237,7 @@ fn main() -> streak::Result<()> {
                 .ok()
                 .expect("four renders timed");
                 println!(
-                    "  σ₁ = {sigma}: {} faces, simplify+plan {:.3} s; analytic ꟻLIP {:.4}, speed-up {:.1}× without, {:.1}× with the simplification; blur ꟻLIP {:.4}, speed-up {:.1}× (blur {:.3} s, LOD {:.3} s + plan, cached, {:.3} s)",
+                    "  σ₁ = {sigma}: {} faces, simplify+plan {:.3} s; analytic ꟻLIP {:.4}, speed-up {:.2}× without, {:.2}× with the simplification; blur ꟻLIP {:.4}, speed-up {:.2}× (blur {:.3} s, LOD {:.3} s + plan, cached, {:.3} s)",
                     lod.faces,
                     lod.first_plan,
                     flip(&lod.image, &full.image),
