@@ -14,7 +14,7 @@
 //! streak with a linear density along it, also in closed form. Derivation: docs/math.md, "Exact
 //! streaks" and "A streak whose light changes along it".
 
-use super::profile::{exp_half, gaussian_table, GaussianTable};
+use super::profile::{exp_half, gaussian_table, nearest_step, GaussianTable};
 use super::{ceil_non_negative, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
 use crate::math::Sym2;
 use glam::DVec2;
@@ -28,8 +28,9 @@ pub const MIN_STREAK_SIGMAS: f64 = 1.0;
 /// Φ is tabulated over [−PHI_RANGE, PHI_RANGE]; beyond, it is 0 or 1 to within 10⁻⁹.
 const PHI_RANGE: f32 = 6.0;
 
-/// Steps of the Φ table. Linear interpolation errs by at most h²/8 · max|φ'| = (12/2048)²/8 ·
-/// 0.242 ≈ 1.0·10⁻⁶ in Φ, and h²/8 · max|φ''| ≈ 1.7·10⁻⁶ in φ.
+/// Steps of the Φ table. The tangent at the nearest entry, at most half a step h = 12/2048 away,
+/// errs by at most (h/2)²/2 · max|φ'| = (12/2048)²/8 · 0.242 ≈ 1.0·10⁻⁶ in Φ, and h²/8 ·
+/// max|φ''| ≈ 1.7·10⁻⁶ in φ (as linear interpolation between entries would).
 const PHI_STEPS: usize = 2048;
 
 /// Φ(t) and φ(t), the standard normal distribution and density, at t = −PHI_RANGE + i · 2
@@ -66,22 +67,20 @@ fn phi(table: &PhiTable, t: f32) -> f32 {
     phi_and_density(table, t)[0]
 }
 
-/// Φ(t) and φ(t) from `table`, each interpolated linearly.
+/// Φ(t) and φ(t) from `table`, each from its tangent at the nearest entry: Φ' = φ and φ' = −tφ.
 #[inline]
 fn phi_and_density(table: &PhiTable, t: f32) -> [f32; 2] {
+    const STEP: f32 = 2.0 * PHI_RANGE / PHI_STEPS as f32;
     // Past the last step, its end.
-    let u = ((t + PHI_RANGE) * (PHI_STEPS as f32 / (2.0 * PHI_RANGE))).min(PHI_STEPS as f32);
+    let u = ((t + PHI_RANGE) * (1.0 / STEP)).min(PHI_STEPS as f32);
     if !(u > 0.0) {
         return [0.0, 0.0];
     }
-    // Through u32, as in `profile::interpolate`.
-    let i = (u as u32).min(PHI_STEPS as u32 - 1) as usize;
-    let ([phi0, density0], [phi1, density1]) = (table[i], table[i + 1]);
-    let f = u - i as f32;
-    [
-        phi0 + (phi1 - phi0) * f,
-        density0 + (density1 - density0) * f,
-    ]
+    let (i, entry) = nearest_step(u);
+    let [phi, density] = table[i.min(PHI_STEPS)];
+    let offset = (u - entry) * STEP;
+    let at = entry * STEP - PHI_RANGE;
+    [phi + density * offset, density * (1.0 - at * offset)]
 }
 
 /// A footprint's streak: the linear maps from a pixel offset to its place across and along the
