@@ -24,7 +24,7 @@ use glam::DVec2;
 use profile::Sampler;
 use rayon::prelude::*;
 use streak::{StreakGeometry, StreakRows};
-pub(crate) use tiles::{costliest_first, TileGrid, TileLists};
+pub(crate) use tiles::{TileGrid, TileLists};
 
 /// Variance of the screen-space anti-aliasing pre-filter in px² (the EWA low-pass σ_f², docs/math.md "Projected splat covariance").
 /// 0.3 px² keeps every footprint at least ~0.55 px wide, so sampling at pixel centres sums even the
@@ -777,9 +777,7 @@ fn tile_pass<const B: usize, T: Send>(
     // A tile no footprint reaches is clear, without setting up and finishing its pixel states.
     let mut empty = PixelState::<B>::EMPTY;
     let clear = empty.finish(bins);
-    let bands: Vec<T> = bands.collect();
-    let band_cost = |ty| lists.row_entries(&grid, ty);
-    tiles::costliest_first(bands, band_cost, |ty, mut band| {
+    lists.by_rows_costliest_first(&grid, bands.collect(), |ty, mut band: T| {
         let mut scratch = TileScratch::default();
         let band_start = ty * band_len(target.width);
         for tile in grid.row(ty) {
@@ -836,6 +834,18 @@ pub(crate) fn ceil_non_negative(x: f32) -> u32 {
     } else {
         t
     }
+}
+
+/// 2²³: a float in [0, 2²²) plus this is rounded to an integer, which its low mantissa bits hold.
+const ROUNDING: f32 = 8_388_608.0;
+
+/// The integer nearest to `u` ≥ 0 (below 2²²), as an index and as a float: by rounding, which
+/// costs fewer instructions than the saturating float-to-integer conversion `as` makes (the
+/// table lookups of every pixel).
+#[inline]
+pub(crate) fn nearest_step(u: f32) -> (usize, f32) {
+    let rounded = u + ROUNDING;
+    ((rounded.to_bits() & 0x7f_ffff) as usize, rounded - ROUNDING)
 }
 
 /// `a.max(b)` for a `b` that is not NaN (a NaN `a` gives `b`, as there), in one compare: on

@@ -6,7 +6,7 @@
 //! beyond the rasterizer's cut-off radius, and normalized so that it integrates to the footprint's
 //! weight: coverage and energy mean the same whatever the texture.
 
-use super::{larger, CUTOFF_Q, CUTOFF_SIGMAS};
+use super::{larger, nearest_step, CUTOFF_Q, CUTOFF_SIGMAS};
 use std::sync::LazyLock;
 
 /// Steps of the table of exp(−q/2) over q ∈ [0, cut-off²] that Gaussian footprints are evaluated
@@ -32,17 +32,6 @@ static GAUSSIAN_TABLE: LazyLock<GaussianTable> = LazyLock::new(|| {
         [value as f32, (-0.5 * step * value) as f32]
     })
 });
-
-/// 2²³: a float in [0, 2²²) plus this is rounded to an integer, which its low mantissa bits hold.
-const ROUNDING: f32 = 8_388_608.0;
-
-/// The integer nearest to `u` ≥ 0 (below 2²²), as an index and as a float: by rounding, which
-/// costs fewer instructions than the saturating float-to-integer conversion `as` makes.
-#[inline]
-pub(super) fn nearest_step(u: f32) -> (usize, f32) {
-    let rounded = u + ROUNDING;
-    ((rounded.to_bits() & 0x7f_ffff) as usize, rounded - ROUNDING)
-}
 
 /// exp(−q/2) for q in [0, cut-off²], from the tangent at the nearest entry of the
 /// [`GAUSSIAN_TABLE`] that [`gaussian_table`] gives.

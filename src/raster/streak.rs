@@ -14,8 +14,8 @@
 //! streak with a linear density along it, also in closed form. Derivation: docs/math.md, "Exact
 //! streaks" and "A streak whose light changes along it".
 
-use super::profile::{exp_half, gaussian_table, nearest_step, GaussianTable};
-use super::{ceil_non_negative, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
+use super::profile::{exp_half, gaussian_table, GaussianTable};
+use super::{ceil_non_negative, nearest_step, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
 use crate::math::Sym2;
 use glam::DVec2;
 use std::sync::LazyLock;

@@ -84,7 +84,7 @@ impl TileGrid {
 /// whichever thread is free: an image's work gathers in the tiles its objects cover, and rayon's
 /// halving split of the items in image order can leave one thread the last heavy rows while the
 /// others wait. Which thread runs an item changes nothing in its result.
-pub(crate) fn costliest_first<T: Send, R: Send>(
+fn costliest_first<T: Send, R: Send>(
     items: Vec<T>,
     cost: impl Fn(usize) -> usize,
     work: impl Fn(usize, T) -> R + Sync,
@@ -164,10 +164,19 @@ impl TileLists {
         &self.entries[self.starts[tile]..self.starts[tile + 1]]
     }
 
-    /// Item–tile pairs in the tiles of tile row `ty`.
-    pub(crate) fn row_entries(&self, grid: &TileGrid, ty: usize) -> usize {
-        let tiles = grid.row(ty);
-        self.starts[tiles.end] - self.starts[tiles.start]
+    /// `work(ty, band)` for the `bands` item of each tile row `ty`, in parallel, the rows with the
+    /// most item–tile pairs first ([`costliest_first`]); the results in row order.
+    pub(crate) fn by_rows_costliest_first<T: Send, R: Send>(
+        &self,
+        grid: &TileGrid,
+        bands: Vec<T>,
+        work: impl Fn(usize, T) -> R + Sync,
+    ) -> Vec<R> {
+        let row_entries = |ty| {
+            let tiles = grid.row(ty);
+            self.starts[tiles.end] - self.starts[tiles.start]
+        };
+        costliest_first(bands, row_entries, work)
     }
 
     /// Item–tile pairs in all.

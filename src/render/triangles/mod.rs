@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
 use crate::raster::TILE_PX;
-use crate::raster::{costliest_first, TileGrid, TileLists};
+use crate::raster::{TileGrid, TileLists};
 use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMesh};
 use intervals::{resolve, AsIs, BentDepth, Interval, ResolveScratch};
@@ -540,8 +540,7 @@ impl<'a> Prepared<'a> {
         };
         let pool = ScratchPool::default();
         let bands: Vec<_> = image.pixels.chunks_mut(band).zip(hidden_bands).collect();
-        let band_cost = |ty| lists.row_entries(&grid, ty);
-        let stats = costliest_first(bands, band_cost, |ty, (pixels, mut hidden)| {
+        let stats = lists.by_rows_costliest_first(&grid, bands, |ty, (pixels, mut hidden)| {
             pool.with(|scratch| {
                 let mut stats = TriangleStats::default();
                 for tile in grid.row(ty) {
