@@ -9,7 +9,7 @@
 //! (an instant) this is plain front-to-back compositing with α = opacity(Σw). Why bins, with the
 //! measurements: docs/math.md, "Time bins for coverage".
 
-use super::{larger, opacity, smaller, Footprint, Passage};
+use super::{ceil_small, floor_small, larger, opacity, smaller, Footprint, Passage};
 use crate::scene::shutter::Shutter;
 
 /// Once this share of the exposure is left unoccluded at a pixel, farther surfaces cannot change
@@ -63,9 +63,8 @@ fn bin_span<const B: usize>([lo, hi]: [f32; 2], bins: &TimeBins<B>) -> BinSpan {
     let end = B as f32;
     let u0 = smaller(larger((lo - bins.start) * bins.bins_per_time, 0.0), end);
     let u1 = smaller(larger((hi - bins.start) * bins.bins_per_time, 0.0), end);
-    // Through u32, as in `Sampler::value`: a cheaper conversion than to usize.
-    let first = (u0 as u32 as usize).min(B - 1);
-    let last = (super::ceil_non_negative(u1) as usize).clamp(first + 1, B);
+    let first = floor_small(u0).min(B - 1);
+    let last = ceil_small(u1).clamp(first + 1, B);
     BinSpan {
         first,
         last,
@@ -90,6 +89,13 @@ fn depths_in_bins<const B: usize>(
     let width = 1.0 / bins.bins_per_time;
     let middle = bins.start + (span.first as f32 + 0.5) * width;
     (passage.depth_then(middle), passage.depth_rate * width)
+}
+
+/// Whether coverage beyond full, `excess` in all, can be spilled into bins not full that hold
+/// `held` ([`PixelState::spill_overflow`]).
+#[inline]
+fn spills(excess: f32, held: f32) -> bool {
+    excess > 1e-6 && held > 0.0
 }
 
 /// Front-to-back compositing state of one pixel.
@@ -363,10 +369,14 @@ impl<const B: usize> PixelState<B> {
     }
 
     /// Add to each bin of the open group the coverage its marks in `group_whole_bins` stand for
-    /// (their running sum times the bin's mass), and clear the marks.
-    fn settle_whole_bins(&mut self, bins: &TimeBins<B>) {
+    /// (their running sum times the bin's mass), and clear the marks. Returns whether some bin
+    /// then holds more than full coverage that [`Self::spill_overflow`] can move: its first
+    /// round's test, in the same loop and order, so that a group with nothing to spill (most)
+    /// reads its bins once less.
+    fn settle_whole_bins(&mut self, bins: &TimeBins<B>) -> bool {
         let [first, last] = self.group_bins;
         let (mut per_mass, mut largest) = (0.0f32, 0.0f32);
+        let (mut excess, mut held) = (0.0, 0.0);
         for b in first..last {
             let mark = std::mem::take(&mut self.group_whole_bins[b]);
             per_mass += mark;
@@ -376,8 +386,18 @@ impl<const B: usize> PixelState<B> {
             if per_mass.abs() <= 1e-5 * largest {
                 per_mass = 0.0;
             }
-            self.group_coverage[b] += per_mass * bins.mass[b];
+            let (coverage, mass) = (
+                self.group_coverage[b] + per_mass * bins.mass[b],
+                bins.mass[b],
+            );
+            self.group_coverage[b] = coverage;
+            if coverage > mass {
+                excess += coverage - mass;
+            } else if coverage < mass {
+                held += coverage;
+            }
         }
+        spills(excess, held)
     }
 
     /// Move the group's coverage beyond full in some bins into its bins that are not full, in
@@ -402,7 +422,7 @@ impl<const B: usize> PixelState<B> {
                     held += *coverage;
                 }
             }
-            if !(excess > 1e-6 && held > 0.0) {
+            if !spills(excess, held) {
                 return;
             }
             let scale = 1.0 + excess / held;
@@ -421,16 +441,17 @@ impl<const B: usize> PixelState<B> {
         }
         let [first, last] = self.group_bins;
         if self.group_weight > 0.0 {
-            // One bin (an instant) has no run of whole bins to mark.
-            if B > 1 {
-                self.settle_whole_bins(bins);
+            // One bin (an instant) has no run of whole bins to mark and no other bin to spill
+            // into. Unspilled coverage beyond full is as opaque as full: its excess is left.
+            if B > 1 && self.settle_whole_bins(bins) {
+                self.spill_overflow(bins);
             }
-            self.spill_overflow(bins);
             let mut visible = 0.0;
             for b in first..last {
                 let mass = bins.mass[b];
+                let coverage = std::mem::take(&mut self.group_coverage[b]);
                 if mass > 0.0 {
-                    let alpha = opacity(f64::from(self.group_coverage[b] / mass)) as f32;
+                    let alpha = opacity(f64::from(coverage / mass)) as f32;
                     visible += self.transmittance[b] * alpha * mass;
                     self.transmittance[b] *= 1.0 - alpha;
                 }
@@ -451,13 +472,15 @@ impl<const B: usize> PixelState<B> {
                     .fold(f32::NEG_INFINITY, |a, &d| a.max(d));
             }
             self.remaining = remaining;
+        } else if first < last {
+            // Without weight the group deposited no coverage, but for weights that underflow.
+            self.group_coverage[first..last].fill(0.0);
         }
         self.group_colour = [0.0; 3];
         self.group_emission = [0.0; 3];
         self.group_weight = 0.0;
         if first < last {
             self.group_depth[first..last].fill(f32::INFINITY);
-            self.group_coverage[first..last].fill(0.0);
         }
         self.group_bins = [B, 0];
     }
@@ -545,7 +568,7 @@ mod tests {
                 *e += f64::from(w) * overlap(b) / total;
             }
         }
-        pixel.settle_whole_bins(&bins);
+        let _ = pixel.settle_whole_bins(&bins);
         for (b, &e) in expected.iter().enumerate() {
             let got = f64::from(pixel.group_coverage[b]);
             // f32 sums of 200 deposits: within 10⁻⁵ relative.

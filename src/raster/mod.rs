@@ -504,15 +504,25 @@ impl RowSpans {
         }
         let half_width = squared.sqrt();
         let centre = self.centre - self.shear * dy;
-        // ⌈centre − h⌉ and ⌊centre + h⌋ + 1, clamped to the bounds before rounding.
-        let lo = ceil_non_negative((centre - half_width).max(self.first));
-        let last = (centre + half_width).min(self.last);
-        let hi = if last >= 0.0 { last as u32 + 1 } else { 0 };
-        if hi > lo {
-            (lo, hi)
-        } else {
-            (0, 0)
-        }
+        columns_within(
+            centre - half_width,
+            centre + half_width,
+            self.first,
+            self.last,
+        )
+    }
+}
+
+/// Columns [⌈lo⌉, ⌊hi⌋ + 1) clamped to the columns [first, last] (whole numbers, 0 ≤ first ≤
+/// last < 2²²); (0, 0) where none is left. Clamped before rounding, so that a NaN or huge `lo` or
+/// `hi` meets the bounds.
+#[inline]
+fn columns_within(lo: f32, hi: f32, first: f32, last: f32) -> (u32, u32) {
+    let (lo, hi) = (larger(lo, first), smaller(hi, last));
+    if hi >= lo {
+        (ceil_small(lo) as u32, floor_small(hi) as u32 + 1)
+    } else {
+        (0, 0)
     }
 }
 
@@ -825,17 +835,6 @@ fn order_key(value: f32) -> u32 {
     }
 }
 
-/// ⌈x⌉ for x ≥ 0 (saturating), without the libm call `f32::ceil` becomes on baseline x86-64.
-#[inline]
-pub(crate) fn ceil_non_negative(x: f32) -> u32 {
-    let t = x as u32;
-    if (t as f32) < x {
-        t + 1
-    } else {
-        t
-    }
-}
-
 /// 2²³: a float in [0, 2²²) plus this is rounded to an integer, which its low mantissa bits hold.
 const ROUNDING: f32 = 8_388_608.0;
 
@@ -846,6 +845,21 @@ const ROUNDING: f32 = 8_388_608.0;
 pub(crate) fn nearest_step(u: f32) -> (usize, f32) {
     let rounded = u + ROUNDING;
     ((rounded.to_bits() & 0x7f_ffff) as usize, rounded - ROUNDING)
+}
+
+/// ⌊u⌋ for 0 ≤ u < 2²², by rounding as [`nearest_step`] does: without the libm call
+/// `f32::floor` becomes on baseline x86-64, and without the saturating conversion of `as`.
+#[inline]
+pub(crate) fn floor_small(u: f32) -> usize {
+    let (i, nearest) = nearest_step(u);
+    i - usize::from(nearest > u)
+}
+
+/// ⌈u⌉ for 0 ≤ u < 2²²: the counterpart of [`floor_small`].
+#[inline]
+pub(crate) fn ceil_small(u: f32) -> usize {
+    let (i, nearest) = nearest_step(u);
+    i + usize::from(nearest < u)
 }
 
 /// `a.max(b)` for a `b` that is not NaN (a NaN `a` gives `b`, as there), in one compare: on

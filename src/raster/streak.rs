@@ -15,7 +15,7 @@
 //! streaks" and "A streak whose light changes along it".
 
 use super::profile::{exp_half, gaussian_table, GaussianTable};
-use super::{ceil_non_negative, nearest_step, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
+use super::{columns_within, nearest_step, Shape, CUTOFF_Q, CUTOFF_SIGMAS};
 use crate::math::Sym2;
 use glam::DVec2;
 use std::sync::LazyLock;
@@ -212,14 +212,12 @@ impl Shape for StreakRows {
         if !(range[0] <= range[1]) {
             return (0, 0);
         }
-        let lo = ceil_non_negative((self.centre + range[0]).max(self.first));
-        let last = (self.centre + range[1]).min(self.last);
-        let hi = if last >= 0.0 { last as u32 + 1 } else { 0 };
-        if hi > lo {
-            (lo, hi)
-        } else {
-            (0, 0)
-        }
+        columns_within(
+            self.centre + range[0],
+            self.centre + range[1],
+            self.first,
+            self.last,
+        )
     }
 
     #[inline]
