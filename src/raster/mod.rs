@@ -1125,6 +1125,21 @@ mod tests {
     }
 
     #[test]
+    fn rounding_gives_floor_and_ceil_at_and_between_whole_numbers() {
+        // Whole numbers, the points half-way (where rounding to even goes either way) and the
+        // floats next to them, up to the largest image side and beyond it.
+        for whole in (0..70).chain([4095, 4096, 8191, 8192, 1 << 21, (1 << 22) - 1]) {
+            let w = whole as f32;
+            for u in [w, w + 0.5, w + 0.25, w + 0.75, w.next_up(), w.next_down()] {
+                if (0.0..(1 << 22) as f32).contains(&u) {
+                    assert_eq!(floor_small(u), u.floor() as usize, "⌊{u}⌋");
+                    assert_eq!(ceil_small(u), u.ceil() as usize, "⌈{u}⌉");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn image_sizes_that_are_not_multiples_of_the_tile_work() {
         let f = gaussian(
             DVec2::new(36.0, 20.0),
