@@ -91,11 +91,32 @@ fn depths_in_bins<const B: usize>(
     (passage.depth_then(middle), passage.depth_rate * width)
 }
 
-/// Whether coverage beyond full, `excess` in all, can be spilled into bins not full that hold
-/// `held` ([`PixelState::spill_overflow`]).
-#[inline]
-fn spills(excess: f32, held: f32) -> bool {
-    excess > 1e-6 && held > 0.0
+/// A group's coverage beyond full and what its bins not full hold, tallied bin by bin
+/// ([`PixelState::spill_overflow`]).
+#[derive(Default)]
+struct Overflow {
+    excess: f32,
+    held: f32,
+}
+
+impl Overflow {
+    /// Count a bin holding `coverage` of its `mass`; whether it is beyond full.
+    #[inline]
+    fn count(&mut self, coverage: f32, mass: f32) -> bool {
+        if coverage > mass {
+            self.excess += coverage - mass;
+            return true;
+        }
+        if coverage < mass {
+            self.held += coverage;
+        }
+        false
+    }
+
+    /// Whether the excess can be spilled into the bins not full.
+    fn spills(&self) -> bool {
+        self.excess > 1e-6 && self.held > 0.0
+    }
 }
 
 /// Front-to-back compositing state of one pixel.
@@ -376,7 +397,7 @@ impl<const B: usize> PixelState<B> {
     fn settle_whole_bins(&mut self, bins: &TimeBins<B>) -> bool {
         let [first, last] = self.group_bins;
         let (mut per_mass, mut largest) = (0.0f32, 0.0f32);
-        let (mut excess, mut held) = (0.0, 0.0);
+        let mut overflow = Overflow::default();
         for b in first..last {
             let mark = std::mem::take(&mut self.group_whole_bins[b]);
             per_mass += mark;
@@ -386,18 +407,11 @@ impl<const B: usize> PixelState<B> {
             if per_mass.abs() <= 1e-5 * largest {
                 per_mass = 0.0;
             }
-            let (coverage, mass) = (
-                self.group_coverage[b] + per_mass * bins.mass[b],
-                bins.mass[b],
-            );
-            self.group_coverage[b] = coverage;
-            if coverage > mass {
-                excess += coverage - mass;
-            } else if coverage < mass {
-                held += coverage;
-            }
+            let mass = bins.mass[b];
+            self.group_coverage[b] += per_mass * mass;
+            overflow.count(self.group_coverage[b], mass);
         }
-        spills(excess, held)
+        overflow.spills()
     }
 
     /// Move the group's coverage beyond full in some bins into its bins that are not full, in
@@ -413,19 +427,16 @@ impl<const B: usize> PixelState<B> {
         let masses = &bins.mass[first..last];
         // Each round fills at least one more bin or places all the excess: at most B rounds.
         for _ in 0..B {
-            let (mut excess, mut held) = (0.0, 0.0);
+            let mut overflow = Overflow::default();
             for (coverage, &mass) in coverages.iter_mut().zip(masses) {
-                if *coverage > mass {
-                    excess += *coverage - mass;
+                if overflow.count(*coverage, mass) {
                     *coverage = mass;
-                } else if *coverage < mass {
-                    held += *coverage;
                 }
             }
-            if !spills(excess, held) {
+            if !overflow.spills() {
                 return;
             }
-            let scale = 1.0 + excess / held;
+            let scale = 1.0 + overflow.excess / overflow.held;
             for (coverage, &mass) in coverages.iter_mut().zip(masses) {
                 if *coverage < mass {
                     *coverage *= scale;
