@@ -111,11 +111,19 @@ const LENGTH_BUCKETS_PER_OCTAVE: f64 = 4.0;
 /// Normal buckets per cube-face axis: normals within about 30° may merge.
 const NORMAL_BUCKETS: f64 = 3.0;
 
-/// Surfels are merged only when the median one is smaller than this share of a typical cell's
-/// side, the geometric mean of its length and width (so that a cell gathers about four): the
-/// pass that finds the cells costs about as much as projecting the surfels, and on the torus knot
-/// at 512² (surfels 0.95 px) merging two into one made `static` 2.2× slower.
+/// Surfels are merged in square cells only when the median one is smaller than this share of
+/// the cell's side (so that a cell gathers about four): the pass that finds the cells costs
+/// about as much as projecting the surfels, and on the torus knot at 512² (surfels 0.95 px)
+/// merging two into one made `static` 2.2× slower.
 const MERGE_SHARE: f64 = 0.5;
+
+/// The same share for cells along the motion, of the geometric mean of their length and width
+/// (so that a cell gathers about two): a blurred surfel is drawn as a streak its path long, which
+/// costs far more than the pass, so halving their number pays. The Stanford bunny turning at
+/// 512², surfels 1.45 px, full detail against merged (docs/math.md, "Level of detail"): with
+/// cells 7.6 px long (this share lets them merge, the square cells' does not) `blur` took 0.17 s
+/// against 0.32 s, for RMSE +19 %.
+const MERGE_SHARE_ALONG: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// Surfels sampled to decide whether an object has anything to merge.
 const SIZE_PROBES: usize = 256;
@@ -360,10 +368,15 @@ impl Grid<'_> {
     }
 
     /// Whether cells gather enough of the surfels that `probes` describe to pay for the pass
-    /// that finds them ([`MERGE_SHARE`]).
+    /// that finds them ([`MERGE_SHARE`], [`MERGE_SHARE_ALONG`] for cells longer than wide).
     fn worth_merging(&self, probes: &Probes) -> bool {
         let length = self.cell_length(probes.path_px);
-        probes.surfel_px < MERGE_SHARE * (self.across_of(length) * length).sqrt()
+        let share = if length > self.cell {
+            MERGE_SHARE_ALONG
+        } else {
+            MERGE_SHARE
+        };
+        probes.surfel_px < share * (self.across_of(length) * length).sqrt()
     }
 
     /// Width across the motion of a cell `length_px` long (square cells are `cell` wide).

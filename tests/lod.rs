@@ -222,3 +222,29 @@ fn longer_cells_on_a_curved_surface_gather_more_surfels_each() {
         "cells of 0.2 of the path: {long}×; of 0.05: {short}×"
     );
 }
+
+#[test]
+fn a_blurred_object_merges_in_cells_that_gather_fewer_surfels_than_an_instant_needs() {
+    // Surfels 0.06 units apart (1.3 px) sliding 0.7 units (15 px): a cell along the motion, a
+    // fifth of the path long and 2σ wide, gathers about three of them (the median surfel is 0.59
+    // of the cell's √(length × width)), so `blur` merges them (`MERGE_SHARE_ALONG`; the square
+    // cells' share, 0.5, would not), while a square cell of the instant, 1 px, gathers less than
+    // one.
+    let sliding = scene(
+        camera(200, 120),
+        vec![object(
+            patch(DVec3::ZERO, [2.0, 1.0], 0.06, false),
+            linear(DVec3::new(-0.35, 0.0, 0.0), DVec3::new(0.35, 0.0, 0.0)),
+        )],
+    );
+    let (full, _) = draw_with(&sliding, &Method::BLUR, Lod::Off);
+    let (merged, outcome) = draw_with(&sliding, &Method::BLUR, Lod::Auto);
+    assert!(merged_by(&outcome) > 1.3, "{outcome:?}");
+    let error = rmse(&merged, &full);
+    assert!(error < 0.01, "RMSE {error}");
+    let (_, instant) = draw_with(&sliding, &Method::STATIC, Lod::Auto);
+    assert!(
+        matches!(instant, LodOutcome::Kept { surfel_px } if surfel_px > 1.0),
+        "{instant:?}"
+    );
+}
