@@ -71,8 +71,35 @@ pub fn opacity(coverage: f64) -> f64 {
     }
 }
 
-/// Tile side in pixels.
+/// Tile side in pixels: of every tiled renderer, and of the splat rasterizer on small images.
 pub const TILE_PX: u32 = 16;
+
+/// Tile side of the splat rasterizer where the image has [`MIN_TILE_ROWS_PER_THREAD`] rows of such
+/// tiles for every worker: a footprint a few pixels wide then straddles fewer tiles, and each
+/// tile it reaches sets it up and clips it again (the knot's `static` at 512² and 1024² 5–9 %
+/// faster, its `blur` 2–6 %; docs/history.md, "Larger tiles for the splats of large images").
+/// `analytic` and `kernel3d` keep [`TILE_PX`]: larger tiles made them slower and `analytic`
+/// larger in memory.
+const LARGE_TILE_PX: u32 = 32;
+
+/// Rows of tiles per worker thread below which the splat rasterizer keeps [`TILE_PX`] tiles:
+/// rows are its units of parallel work, and with fewer a thread is left waiting on another's
+/// last heavy row (the knot's `blur` at 160 × 120 took 8–14 % longer in four rows of 32 px than
+/// in eight of 16, on two threads). The image does not depend on the tile size.
+const MIN_TILE_ROWS_PER_THREAD: u32 = 8;
+
+/// The splat rasterizer's tile grid over a `width` × `height` image ([`LARGE_TILE_PX`] where it
+/// has enough rows of them for the worker threads, else [`TILE_PX`]).
+fn splat_grid(width: u32, height: u32) -> TileGrid {
+    let threads = u32::try_from(rayon::current_num_threads()).unwrap_or(u32::MAX);
+    let rows = height / LARGE_TILE_PX;
+    let tile_px = if rows >= MIN_TILE_ROWS_PER_THREAD.saturating_mul(threads) {
+        LARGE_TILE_PX
+    } else {
+        TILE_PX
+    };
+    TileGrid::with_tile_px(width, height, tile_px)
+}
 
 /// A screen-space elliptical Gaussian ready to rasterize.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -416,19 +443,20 @@ impl Footprint {
     /// [`Self::for_each_tile`] for the footprint's `shape`.
     fn tiles_within(&self, shape: &impl Shape, grid: &TileGrid, visit: &mut dyn FnMut(usize)) {
         let [x0, y0, x1, y1] = self.bounds;
-        let (tx0, tx1) = (x0 / TILE_PX, (x1 - 1) / TILE_PX);
-        let (ty0, ty1) = (y0 / TILE_PX, (y1 - 1) / TILE_PX);
+        let tile_px = grid.tile_px();
+        let (tx0, tx1) = (x0 / tile_px, (x1 - 1) / tile_px);
+        let (ty0, ty1) = (y0 / tile_px, (y1 - 1) / tile_px);
         for ty in ty0..=ty1 {
             let (lo, hi) = if tx1 - tx0 < 2 || ty1 - ty0 < 2 {
                 (x0, x1)
             } else {
-                let rows = y0.max(ty * TILE_PX)..y1.min((ty + 1) * TILE_PX);
+                let rows = y0.max(ty * tile_px)..y1.min((ty + 1) * tile_px);
                 rows.map(|y| shape.span(y))
                     .filter(|(a, b)| a < b)
                     .fold((u32::MAX, 0), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)))
             };
             if lo < hi {
-                for tx in lo / TILE_PX..=(hi - 1) / TILE_PX {
+                for tx in lo / tile_px..=(hi - 1) / tile_px {
                     visit(grid.index(tx, ty));
                 }
             }
@@ -696,6 +724,7 @@ pub fn rasterize<const B: usize>(
     bins: &TimeBins<B>,
 ) -> (Layer, RasterStats) {
     let (width, height) = (target.width, target.height);
+    let grid = splat_grid(width, height);
     // Every pixel is written by the tile pass, so the layer starts as zeroed memory, whose pages
     // are faulted in by the tasks that first write them rather than filled serially here.
     let size = width as usize * height as usize;
@@ -706,13 +735,14 @@ pub fn rasterize<const B: usize>(
         transmittance: vec![0.0; size],
         front_depth: vec![0.0; size],
     };
-    let band = band_len(width);
+    let band = grid.band_len();
     let bands = (layer.colour.par_chunks_mut(band))
         .zip(layer.transmittance.par_chunks_mut(band))
         .zip(layer.front_depth.par_chunks_mut(band));
     let stats = tile_pass(
         footprints,
         target,
+        &grid,
         bins,
         bands,
         |((colour, transmittance), front_depth), i, _, (c, t, d)| {
@@ -735,12 +765,25 @@ pub fn rasterize_over<const B: usize>(
     bins: &TimeBins<B>,
     behind: impl Fn(usize) -> [f32; 3] + Sync,
 ) -> (Framebuffer, RasterStats) {
+    let grid = splat_grid(target.width, target.height);
+    rasterize_over_grid(footprints, target, &grid, bins, behind)
+}
+
+/// [`rasterize_over`] in the tiles of `grid`.
+fn rasterize_over_grid<const B: usize>(
+    footprints: &[Footprint],
+    target: &Target,
+    grid: &TileGrid,
+    bins: &TimeBins<B>,
+    behind: impl Fn(usize) -> [f32; 3] + Sync,
+) -> (Framebuffer, RasterStats) {
     let (width, height) = (target.width, target.height);
     let mut pixels = vec![[0.0; 3]; width as usize * height as usize];
-    let bands = pixels.par_chunks_mut(band_len(width));
+    let bands = pixels.par_chunks_mut(grid.band_len());
     let stats = tile_pass(
         footprints,
         target,
+        grid,
         bins,
         bands,
         |band, i, pixel, (c, t, _)| {
@@ -761,35 +804,30 @@ fn over(colour: [f32; 3], transmittance: f32, behind: [f32; 3]) -> [f32; 3] {
     [0, 1, 2].map(|k| colour[k] + transmittance * behind[k])
 }
 
-/// Pixels in one row of tiles.
-fn band_len(width: u32) -> usize {
-    width as usize * TILE_PX as usize
-}
-
-/// Bin `footprints` into tiles and render them, one row of tiles per task: `write(band, i,
-/// pixel, finished)` stores pixel `i` of the `bands` item of its tile row (image pixel index
-/// `pixel`) as (premultiplied colour, transmittance, depth of the visible surface).
+/// Bin `footprints` into the tiles of `grid` and render them, one row of tiles per task:
+/// `write(band, i, pixel, finished)` stores pixel `i` of the `bands` item of its tile row (image
+/// pixel index `pixel`) as (premultiplied colour, transmittance, depth of the visible surface).
 fn tile_pass<const B: usize, T: Send>(
     footprints: &[Footprint],
     target: &Target,
+    grid: &TileGrid,
     bins: &TimeBins<B>,
     bands: impl IndexedParallelIterator<Item = T>,
     write: impl Fn(&mut T, usize, usize, ([f32; 3], f32, f32)) + Sync,
 ) -> RasterStats {
     let width = target.width as usize;
-    let grid = TileGrid::new(target.width, target.height);
     // Binned in footprint order; each tile sorts its own list by depth (docs/architecture.md,
     // "The rasterizer"): a global sort would leave every tile reading its footprints in random
     // memory order.
-    let lists = TileLists::new(&grid, footprints.len(), |index, visit| {
-        footprints[index as usize].for_each_tile(&grid, visit);
+    let lists = TileLists::new(grid, footprints.len(), |index, visit| {
+        footprints[index as usize].for_each_tile(grid, visit);
     });
     // A tile no footprint reaches is clear, without setting up and finishing its pixel states.
     let mut empty = PixelState::<B>::EMPTY;
     let clear = empty.finish(bins);
-    lists.by_rows_costliest_first(&grid, bands.collect(), |ty, mut band: T| {
+    lists.by_rows_costliest_first(grid, bands.collect(), |ty, mut band: T| {
         let mut scratch = TileScratch::default();
-        let band_start = ty * band_len(target.width);
+        let band_start = ty * grid.band_len();
         for tile in grid.row(ty) {
             let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
             let list = lists.list(tile);
@@ -1137,6 +1175,55 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The tile size changes which tasks composite a pixel, never its footprints or their
+    /// order: still splats and sliding streaks in time bins, over an image whose sides are no
+    /// multiple of either tile, come out the same to the bit in tiles of 16 and 32 px.
+    #[test]
+    fn the_image_does_not_depend_on_the_tile_size() {
+        let (width, height) = (150, 100);
+        let mut state = 0x2545_f491_u64;
+        let mut random = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let footprints: Vec<Footprint> = (0..400)
+            .filter_map(|i| {
+                let center = DVec2::new(random() * 170.0 - 10.0, random() * 120.0 - 10.0);
+                let mut s = gaussian(
+                    center,
+                    Sym2::isotropic(0.3 + 6.0 * random()),
+                    1.0 + 20.0 * random(),
+                    [random() as f32, random() as f32, random() as f32],
+                    1.0 + random(),
+                );
+                if i % 2 == 0 {
+                    let sweep = DVec2::new(random() - 0.5, random() - 0.5) * 60.0;
+                    s.sweep = sweep;
+                    s.time = TimeExtent {
+                        center: 0.5,
+                        gradient: sweep / sweep.length_squared(),
+                        half_width: 0.05 + 0.1 * random(),
+                        span: [0.0, 1.0],
+                    };
+                }
+                s.footprint(width, height).ok()
+            })
+            .collect();
+        let target = Target::new(width, height);
+        let bins = TimeBins::<32>::over(&crate::scene::shutter::Shutter::default());
+        let image = |tile_px| {
+            let grid = TileGrid::with_tile_px(width, height, tile_px);
+            rasterize_over_grid(&footprints, &target, &grid, &bins, |_| [0.1, 0.2, 0.3]).0
+        };
+        let bits = |f: Framebuffer| -> Vec<[u32; 3]> {
+            f.pixels.iter().map(|p| p.map(f32::to_bits)).collect()
+        };
+        assert!(footprints.iter().filter(|f| f.streak.is_some()).count() > 100);
+        assert_eq!(bits(image(TILE_PX)), bits(image(LARGE_TILE_PX)));
     }
 
     #[test]

@@ -1,4 +1,5 @@
-//! The tile grid both rasterizers work on: the image cut into [`TILE_PX`] squares, each owning
+//! The tile grid both rasterizers work on: the image cut into squares ([`TILE_PX`] unless the
+//! splat rasterizer asks for larger), each owning
 //! its pixels (so tiles render in parallel without locks), items binned into per-tile lists, and
 //! per-tile results put back into one image.
 
@@ -8,24 +9,41 @@ use std::cmp::Reverse;
 use std::sync::{Mutex, PoisonError};
 
 /// The image cut into tiles, row by row: tile `ty · tiles_x + tx` covers the pixels from
-/// (tx, ty)·[`TILE_PX`], cut at the image's edges.
+/// (tx, ty)·`tile_px`, cut at the image's edges.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct TileGrid {
     width: u32,
     height: u32,
+    tile_px: u32,
     tiles_x: usize,
     tiles_y: usize,
 }
 
 impl TileGrid {
-    /// The grid over a `width` × `height` image.
+    /// The grid of [`TILE_PX`] tiles over a `width` × `height` image.
     pub(crate) fn new(width: u32, height: u32) -> TileGrid {
+        TileGrid::with_tile_px(width, height, TILE_PX)
+    }
+
+    /// The grid of tiles `tile_px` on a side over a `width` × `height` image.
+    pub(crate) fn with_tile_px(width: u32, height: u32, tile_px: u32) -> TileGrid {
         TileGrid {
             width,
             height,
-            tiles_x: width.div_ceil(TILE_PX) as usize,
-            tiles_y: height.div_ceil(TILE_PX) as usize,
+            tile_px,
+            tiles_x: width.div_ceil(tile_px) as usize,
+            tiles_y: height.div_ceil(tile_px) as usize,
         }
+    }
+
+    /// The side of a tile, px.
+    pub(crate) fn tile_px(&self) -> u32 {
+        self.tile_px
+    }
+
+    /// Pixels in one row of tiles.
+    pub(crate) fn band_len(&self) -> usize {
+        self.width as usize * self.tile_px as usize
     }
 
     /// How many tiles there are.
@@ -45,13 +63,13 @@ impl TileGrid {
 
     /// The pixel rectangle [x0, y0, x1, y1) of `tile`.
     pub(crate) fn pixels(&self, tile: usize) -> [u32; 4] {
-        let x0 = (tile % self.tiles_x) as u32 * TILE_PX;
-        let y0 = (tile / self.tiles_x) as u32 * TILE_PX;
+        let x0 = (tile % self.tiles_x) as u32 * self.tile_px;
+        let y0 = (tile / self.tiles_x) as u32 * self.tile_px;
         [
             x0,
             y0,
-            (x0 + TILE_PX).min(self.width),
-            (y0 + TILE_PX).min(self.height),
+            (x0 + self.tile_px).min(self.width),
+            (y0 + self.tile_px).min(self.height),
         ]
     }
 
@@ -65,7 +83,7 @@ impl TileGrid {
         put: impl Fn(&mut R, usize, &T) + Sync,
     ) {
         rows.enumerate().for_each(|(y, mut row)| {
-            let ty = y / TILE_PX as usize;
+            let ty = y / self.tile_px as usize;
             let first = ty * self.tiles_x;
             for (tile, block) in (first..).zip(&blocks[first..first + self.tiles_x]) {
                 let [x0, y0, x1, _] = self.pixels(tile);
