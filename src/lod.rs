@@ -288,11 +288,7 @@ pub fn merge(
         .enumerate()
         .map(|(i, s)| {
             let key = grid.key(s);
-            let length = match key {
-                CellKey::Cell { length, .. } => Some(length),
-                CellKey::Alone => None,
-            };
-            (PackedKey::of(&key), i as u32, length)
+            (PackedKey::of(&key), i as u32, key.fields().map(|f| f.1))
         })
         .collect();
     keyed.par_sort_unstable_by_key(|&(key, i, _)| (key, i));
@@ -350,6 +346,24 @@ enum CellKey {
     Alone,
 }
 
+impl CellKey {
+    /// A cell's fields in the order keys sort by: direction, length, along, across, layer and
+    /// normal; `None` for `Alone`.
+    fn fields(&self) -> Option<(u8, i16, i64, i64, i64, u8)> {
+        match *self {
+            CellKey::Cell {
+                direction,
+                length,
+                along,
+                across,
+                layer,
+                normal,
+            } => Some((direction, length, along, across, layer, normal)),
+            CellKey::Alone => None,
+        }
+    }
+}
+
 /// A [`CellKey`] as one 192-bit number, most significant word first and, within it, field
 /// first (from the top: two bits for `Alone`, then direction 5, length 15, along, across and
 /// layer 54 each, offset to be non-negative, normal 8), so that keys compare as three integers
@@ -363,15 +377,7 @@ impl PackedKey {
     const OFFSET: i64 = 1 << 53;
 
     fn of(key: &CellKey) -> PackedKey {
-        let CellKey::Cell {
-            direction,
-            length,
-            along,
-            across,
-            layer,
-            normal,
-        } = *key
-        else {
+        let Some((direction, length, along, across, layer, normal)) = key.fields() else {
             return PackedKey([1 << 62, 0, 0]);
         };
         let mut packed = PackedKey([0; 3]);
@@ -706,22 +712,13 @@ mod tests {
                 }
             }
         }
-        let fields = |key: &CellKey| match *key {
-            CellKey::Cell {
-                direction,
-                length,
-                along,
-                across,
-                layer,
-                normal,
-            } => (0, direction, length, along, across, layer, normal),
-            CellKey::Alone => (1, 0, 0, 0, 0, 0, 0),
-        };
+        // `Alone` after every cell.
+        let order = |key: &CellKey| (key.fields().is_none(), key.fields());
         for a in &keys {
             for b in &keys {
                 assert_eq!(
                     PackedKey::of(a).cmp(&PackedKey::of(b)),
-                    fields(a).cmp(&fields(b)),
+                    order(a).cmp(&order(b)),
                     "{a:?} against {b:?}"
                 );
             }
