@@ -18,7 +18,7 @@
 //! motion, and its length quantized to quarter octaves of the path, so that neighbours moving
 //! alike fall into the same cells.
 
-use crate::math::Sym2;
+use crate::math::{floor_to_i64, round_to_i64, Sym2};
 use crate::project::{Instant, DEPTH_TOLERANCE_SIGMAS};
 use crate::scene::camera::Camera;
 use crate::scene::Object;
@@ -497,12 +497,12 @@ impl Grid<'_> {
             if self.along_fraction.is_some() && path >= 2.0 * self.cell {
                 let d = after - before;
                 let turns = d.y.atan2(d.x) / std::f64::consts::TAU;
-                // turns ∈ [−½, ½], so the bucket is 0 to 15 (−0 is 0).
-                let bucket = (turns * DIRECTION_BUCKETS)
-                    .round()
-                    .rem_euclid(DIRECTION_BUCKETS) as u8;
-                let length = ((path / self.cell).log2() * LENGTH_BUCKETS_PER_OCTAVE).floor();
-                let length = length.clamp(0.0, f64::from(i16::MAX)) as i16;
+                // turns ∈ [−½, ½], so the bucket is 0 to 15.
+                let bucket =
+                    round_to_i64(turns * DIRECTION_BUCKETS).rem_euclid(DIRECTION_BUCKETS as i64);
+                let bucket = bucket as u8;
+                let length = (path / self.cell).log2() * LENGTH_BUCKETS_PER_OCTAVE;
+                let length = floor_to_i64(length).clamp(0, i64::from(i16::MAX)) as i16;
                 (
                     bucket,
                     length,
@@ -513,19 +513,17 @@ impl Grid<'_> {
                 (DIRECTION_BUCKETS as u8, 0, DVec2::X, self.cell)
             };
         let (u, v) = (p.dot(frame), p.perp_dot(frame));
-        let (along, across) = (
-            (u / along_px).floor(),
-            (v / self.across_of(along_px)).floor(),
-        );
+        let (along, across) = (u / along_px, v / self.across_of(along_px));
         // The surfel's own depth, so that a layer of a cell is one run of a surface along it.
         // Its tangent plane's depth at the cell's centre, which a sloping plane's surfels share,
         // put both ends of a long cell on a ball in one layer (their planes pass alike in front
         // of the centre) and its middle in another: docs/math.md, "Level of detail".
-        let layer = (depth / self.layer).floor();
+        let layer = depth / self.layer;
         if !(along.is_finite() && across.is_finite() && layer.is_finite()) {
             return alone;
         }
-        let cap = |x: f64| x.clamp(-CELL_INDEX_CAP, CELL_INDEX_CAP) as i64;
+        // ⌊x⌋ within the cap, whose ends are whole numbers.
+        let cap = |x: f64| floor_to_i64(x.clamp(-CELL_INDEX_CAP, CELL_INDEX_CAP));
         CellKey::Cell {
             direction,
             length,

@@ -183,6 +183,22 @@ pub fn floor_to_i64(x: f64) -> i64 {
     truncated.saturating_sub(i64::from((truncated as f64) > x))
 }
 
+/// x rounded to the nearest integer, halves away from zero as `f64::round` (a library call on the
+/// baseline x86-64 target), saturating at the ends of i64 (NaN gives 0).
+#[must_use]
+pub fn round_to_i64(x: f64) -> i64 {
+    let truncated = x as i64;
+    // Exact where the cast is: a whole number's distance from x within 2⁵² of zero.
+    let rest = x - truncated as f64;
+    if rest >= 0.5 {
+        truncated.saturating_add(1)
+    } else if rest <= -0.5 {
+        truncated.saturating_sub(1)
+    } else {
+        truncated
+    }
+}
+
 /// Real roots of a·x² + b·x + c = 0 in ascending order, as (roots, how many): none, one or two,
 /// a double root once.
 ///
@@ -305,6 +321,30 @@ mod tests {
         assert_eq!(floor_to_i64(f64::INFINITY), i64::MAX);
         assert_eq!(floor_to_i64(f64::NEG_INFINITY), i64::MIN);
         assert_eq!(floor_to_i64(f64::NAN), 0);
+    }
+
+    /// Halves, their float neighbours and whole numbers, as `f64::round` has them.
+    #[test]
+    fn round_to_i64_matches_round_and_saturates() {
+        let mut cases = vec![
+            0.0,
+            -0.0,
+            1e10 + 0.5,
+            -1e10 - 0.5,
+            4.5e15 + 0.5,
+            2f64.powi(53),
+        ];
+        for k in -20..=20 {
+            let half = f64::from(k) + 0.5;
+            cases.extend([half, half.next_up(), half.next_down(), f64::from(k)]);
+        }
+        for x in cases {
+            assert_eq!(round_to_i64(x), x.round() as i64, "{x}");
+        }
+        assert_eq!(round_to_i64(0.5f64.next_down()), 0);
+        assert_eq!(round_to_i64(f64::INFINITY), i64::MAX);
+        assert_eq!(round_to_i64(f64::NEG_INFINITY), i64::MIN);
+        assert_eq!(round_to_i64(f64::NAN), 0);
     }
 
     #[test]
