@@ -498,9 +498,8 @@ impl Grid<'_> {
                 let d = after - before;
                 let turns = d.y.atan2(d.x) / std::f64::consts::TAU;
                 // turns ∈ [−½, ½], so the bucket is 0 to 15.
-                let bucket =
-                    round_to_i64(turns * DIRECTION_BUCKETS).rem_euclid(DIRECTION_BUCKETS as i64);
-                let bucket = bucket as u8;
+                let bucket = round_to_i64(turns * DIRECTION_BUCKETS)
+                    .rem_euclid(DIRECTION_BUCKETS as i64) as u8;
                 let length = (path / self.cell).log2() * LENGTH_BUCKETS_PER_OCTAVE;
                 let length = floor_to_i64(length).clamp(0, i64::from(i16::MAX)) as i16;
                 (

@@ -77,7 +77,8 @@ pub const TILE_PX: u32 = 16;
 /// Tile side of the splat rasterizer where the image has [`MIN_TILE_ROWS_PER_THREAD`] rows of such
 /// tiles for every worker: a footprint a few pixels wide then straddles fewer tiles, and each
 /// tile it reaches sets it up and clips it again (the knot's `static` at 512² and 1024² 5–9 %
-/// faster, its `blur` 2–6 %; docs/history.md, "Larger tiles for the splats of large images").
+/// faster, its `blur` 2–6 %; docs/history.md, "Packed cell keys, the mesh key in runs, and larger
+/// tiles for large images").
 /// `analytic` and `kernel3d` keep [`TILE_PX`]: larger tiles made them slower and `analytic`
 /// larger in memory.
 const LARGE_TILE_PX: u32 = 32;

@@ -1,7 +1,6 @@
 //! The tile grid both rasterizers work on: the image cut into squares ([`TILE_PX`] unless the
-//! splat rasterizer asks for larger), each owning
-//! its pixels (so tiles render in parallel without locks), items binned into per-tile lists, and
-//! per-tile results put back into one image.
+//! splat rasterizer asks for larger), each owning its pixels (so tiles render in parallel without
+//! locks), items binned into per-tile lists, and per-tile results put back into one image.
 
 use super::TILE_PX;
 use rayon::prelude::*;

@@ -231,16 +231,16 @@ pub fn simplified(
 ) -> Result<Shared> {
     let mut hasher = hasher();
     mesh_key.hash(&mut hasher);
-    for l in &limits.per_vertex {
-        l.to_bits().hash(&mut hasher);
-    }
-    for m in &motion {
-        // Only the direction's rough angle matters to the weights.
-        m.normalize_or_zero()
-            .to_array()
-            .map(|c| (c * 64.0).round() as i32)
-            .hash(&mut hasher);
-    }
+    hash_words(&mut hasher, limits.per_vertex.iter().map(|l| l.to_bits()));
+    // Only the direction's rough angle matters to the weights.
+    hash_words(
+        &mut hasher,
+        motion.iter().flat_map(|m| {
+            m.normalize_or_zero()
+                .to_array()
+                .map(|c| (c * 64.0).round() as i64 as u64)
+        }),
+    );
     let key = hasher.finish();
     if let Some(shared) = CACHE.find(|&k| k == key) {
         return Ok(shared);
