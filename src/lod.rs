@@ -19,7 +19,7 @@
 //! alike fall into the same cells.
 
 use crate::math::{floor_to_i64, round_to_i64, Sym2};
-use crate::project::{Instant, DEPTH_TOLERANCE_SIGMAS};
+use crate::project::{faces_camera, Instant, DEPTH_TOLERANCE_SIGMAS};
 use crate::scene::camera::Camera;
 use crate::scene::Object;
 use crate::surfels::Surfel;
@@ -151,8 +151,10 @@ pub enum LodOutcome {
     },
     /// Merged.
     Merged {
-        /// Surfels before and after.
+        /// Surfels before.
         surfels_in: usize,
+        /// Of them, facing away wherever the render culls, left out before merging.
+        back_facing: usize,
         /// Surfels after.
         surfels_out: usize,
         /// Whether cells followed the motion (or were square, for an instant).
@@ -174,28 +176,34 @@ impl LodOutcome {
             LodOutcome::Strokes => {
                 "full detail: a sparse trail draws each surfel as a stroke".to_string()
             }
-            LodOutcome::Kept { surfel_px } => format!(
-                "full detail: its surfels are {surfel_px:.2} px across, too large to merge"
-            ),
+            LodOutcome::Kept { surfel_px } => {
+                format!("full detail: its surfels are {surfel_px:.2} px across, too large to merge")
+            }
             LodOutcome::Merged {
                 surfels_in,
+                back_facing,
                 surfels_out,
-                along_motion: true,
+                along_motion,
                 longest_cell_px,
                 widest_cell_px,
-            } => format!(
-                "level of detail: {surfels_in} surfels merged into {surfels_out} ({:.1}×) in cells up to {widest_cell_px:.1} px across the motion and {longest_cell_px:.1} px along it",
-                *surfels_in as f64 / (*surfels_out).max(1) as f64
-            ),
-            LodOutcome::Merged {
-                surfels_in,
-                surfels_out,
-                along_motion: false,
-                ..
-            } => format!(
-                "level of detail: {surfels_in} surfels merged into {surfels_out} ({:.1}×) in {CELL_PX} px cells (sub-pixel surfels)",
-                *surfels_in as f64 / (*surfels_out).max(1) as f64
-            ),
+            } => {
+                let cells = if *along_motion {
+                    format!("cells up to {widest_cell_px:.1} px across the motion and {longest_cell_px:.1} px along it")
+                } else {
+                    format!("{CELL_PX} px cells (sub-pixel surfels)")
+                };
+                let left_out = if *back_facing > 0 {
+                    format!(
+                        "; {back_facing} facing away at every instant drawn were left out first"
+                    )
+                } else {
+                    String::new()
+                };
+                format!(
+                    "level of detail: {surfels_in} surfels merged into {surfels_out} ({:.1}×) in {cells}{left_out}",
+                    *surfels_in as f64 / (*surfels_out).max(1) as f64
+                )
+            }
         }
     }
 }
@@ -218,9 +226,11 @@ impl ObjectLod {
     };
 }
 
-/// Merge `surfels` (of `object`: its own, or resampled from its simplified mesh) for a render that sees it at the instants `times` (increasing; the
-/// middle one is where cells are laid out), in `cells`: along the motion they follow each surfel's
-/// screen path through the instants.
+/// Merge `surfels` (of `object`: its own, or resampled from its simplified mesh) for a render that
+/// sees it at the instants `times` (increasing; the middle one is where cells are laid out), in
+/// `cells`: along the motion they follow each surfel's screen path through the instants. A render
+/// that culls back faces at the instants `culled_at` alone (empty: not known) never draws a
+/// surfel facing away at all of them, which is left out.
 #[must_use]
 pub fn merge(
     camera: &Camera,
@@ -228,11 +238,11 @@ pub fn merge(
     surfels: &[Surfel],
     times: &[f64],
     cells: Cells,
+    culled_at: &[f64],
 ) -> ObjectLod {
-    let instants: Vec<Instant> = times
-        .iter()
-        .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
-        .collect();
+    let instant_at = |&t: &f64| Instant::new(camera, &object.motion.pose_at(t));
+    let instants: Vec<Instant> = times.iter().map(instant_at).collect();
+    let culling: Vec<Instant> = culled_at.iter().map(instant_at).collect();
     let middle = instants.len() / 2;
     // Cells are laid out at the middle instant but must hold at the nearest: shrink them by the
     // object's largest growth on screen over the instants.
@@ -283,14 +293,20 @@ pub fn merge(
 
     // Sorted by key and then index, the key packed: cells, and surfels within each, come in
     // the order of (CellKey, index). The length bucket rides along for the summary.
+    // A surfel facing away at every instant the renderer culls at is never drawn: merging it
+    // would cost its share of the pass, and could only pull a group's normal away from what
+    // full detail shows.
+    let drawn = |s: &Surfel| culling.is_empty() || culling.iter().any(|i| faces_camera(i, s));
     let mut keyed: Vec<(PackedKey, u32, Option<i16>)> = surfels
         .par_iter()
         .enumerate()
+        .filter(|(_, s)| drawn(s))
         .map(|(i, s)| {
             let key = grid.key(s);
             (PackedKey::of(&key), i as u32, key.fields().map(|f| f.1))
         })
         .collect();
+    let back_facing = surfels.len() - keyed.len();
     keyed.par_sort_unstable_by_key(|&(key, i, _)| (key, i));
     let mut merged = Vec::new();
     let (mut longest_cell_px, mut widest_cell_px) = (0.0f64, 0.0f64);
@@ -317,6 +333,7 @@ pub fn merge(
     ObjectLod {
         outcome: LodOutcome::Merged {
             surfels_in: surfels.len(),
+            back_facing,
             surfels_out: merged.len(),
             along_motion: grid.along_fraction.is_some(),
             longest_cell_px,

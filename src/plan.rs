@@ -556,6 +556,7 @@ fn object_lod(
     let (open, close) = (scene.shutter.open, scene.shutter.close);
     let middle = scene.shutter.middle();
     let camera = &scene.camera;
+    let culled_at = culling_times(method, motion, middle);
     match (method, motion) {
         (Method::Static { time }, _) => lod::merge(
             camera,
@@ -563,6 +564,7 @@ fn object_lod(
             surfels,
             &[time.unwrap_or(middle)],
             Cells::Square,
+            &culled_at,
         ),
         (Method::Hint { .. }, ObjectMotion::Still) => ObjectLod {
             merged: None,
@@ -585,15 +587,23 @@ fn object_lod(
                 Cells::AlongMotion(share) => Cells::AlongMotion(share * copy),
                 Cells::Square => Cells::Square,
             };
-            lod::merge(camera, object, surfels, &times, cells)
+            lod::merge(camera, object, surfels, &times, cells, &culled_at)
         }
-        (_, ObjectMotion::Still) => lod::merge(camera, object, surfels, &[middle], Cells::Square),
+        (_, ObjectMotion::Still) => lod::merge(
+            camera,
+            object,
+            surfels,
+            &[middle],
+            Cells::Square,
+            &culled_at,
+        ),
         (Method::Reference { .. }, ObjectMotion::Moving { .. }) => lod::merge(
             camera,
             object,
             surfels,
             &[open, middle, close],
             Cells::Square,
+            &culled_at,
         ),
         (_, ObjectMotion::Moving { segments, .. }) => lod::merge(
             camera,
@@ -601,8 +611,34 @@ fn object_lod(
             surfels,
             &path_times(segments, [open, close]),
             blurred,
+            &culled_at,
         ),
     }
+}
+
+/// The instants at which `method` decides whether a surfel of an object moving by `motion` faces
+/// the camera, when those alone decide it and they are at most [`MAX_PATH_SAMPLES`]: `static` at
+/// its instant; `blur` (and `analytic`'s surfel objects) at the middle for a still object, else at
+/// its sub-segments' ends, between which a surfel's facing is taken as linear. Empty otherwise
+/// (a reference frame, a sub-frame or a trail copy may fall anywhere in the shutter).
+fn culling_times(method: &Method, motion: &ObjectMotion, middle: f64) -> Vec<f64> {
+    match (method, motion) {
+        (Method::Static { time }, _) => vec![time.unwrap_or(middle)],
+        (Method::Blur { .. } | Method::Analytic { .. }, ObjectMotion::Still) => vec![middle],
+        (Method::Blur { .. } | Method::Analytic { .. }, ObjectMotion::Moving { segments, .. })
+            if segments.len() < MAX_PATH_SAMPLES =>
+        {
+            segment_ends(segments)
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// The ends of consecutive `segments`: each one's start, and the last one's end.
+pub(crate) fn segment_ends(segments: &[[f64; 2]]) -> Vec<f64> {
+    let mut ends: Vec<f64> = segments.iter().map(|s| s[0]).collect();
+    ends.extend(segments.last().map(|s| s[1]));
+    ends
 }
 
 /// Instants at which a screen path through `segments` is measured over `window`: the window's

@@ -101,6 +101,21 @@ pub fn view_surfel(
     Some(located.view(camera, instant, lighting, surfel))
 }
 
+/// Cosine between a view-space normal at `p_view` and the direction to the camera: positive when
+/// the surface faces it.
+fn facing(p_view: DVec3, normal_view: DVec3) -> f64 {
+    -normal_view.dot(p_view) / (normal_view.length() * p_view.length())
+}
+
+/// Whether `surfel` faces the camera at `instant`, as the renderers cull it (by the same
+/// arithmetic, so the two never disagree).
+pub(crate) fn faces_camera(instant: &Instant, surfel: &Surfel) -> bool {
+    facing(
+        instant.view_point(surfel.position),
+        instant.view_vector(surfel.normal),
+    ) > 0.0
+}
+
 /// Where a surfel's centre is at one instant and whether it faces the camera: the cheap part of a
 /// [`SurfelView`], enough to cull it.
 struct Located {
@@ -122,7 +137,7 @@ impl Located {
             normal_view,
             center,
             depth,
-            facing: -normal_view.dot(p_view) / (normal_view.length() * p_view.length()),
+            facing: facing(p_view, normal_view),
         })
     }
 

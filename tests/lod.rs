@@ -195,6 +195,51 @@ fn sub_pixel_surfels_of_an_instant_merge_within_a_pixel() {
 }
 
 #[test]
+fn surfels_facing_away_wherever_they_are_drawn_are_left_out_and_the_rest_keep_their_energy() {
+    // A unit ball of 20,000 sub-pixel surfels (0.28 px apart).
+    let count = 20_000;
+    let area = 4.0 * std::f64::consts::PI / count as f64;
+    let ball: Vec<Surfel> = fibonacci_sphere(count)
+        .into_iter()
+        .map(|p| Surfel::isotropic(p, p, area, None, [1.0; 3]))
+        .collect();
+    let back = |outcome: &LodOutcome| match outcome {
+        LodOutcome::Merged { back_facing, .. } => *back_facing as f64 / count as f64,
+        other => panic!("expected a merge, got {other:?}"),
+    };
+    let still_ball = scene(camera(100, 60), vec![object(ball.clone(), still())]);
+    // Turning a quarter turn about the vertical: a surfel on the far side at the middle of the
+    // exposure faces the camera at one of its ends, and `blur` draws it there.
+    let turning = motion(&[
+        (0.0, pose_about_y(DVec3::ZERO, -45.0)),
+        (1.0, pose_about_y(DVec3::ZERO, 45.0)),
+    ]);
+    let turning_ball = scene(camera(100, 60), vec![object(ball, turning)]);
+    // From 10 radii away a camera sees a cap of (1 − 1/10)/2 of a ball: 55 % faces away.
+    // Turning, the ball shows more of itself over the exposure, and less of it is left out.
+    for (scene, method, left_out) in [
+        (&still_ball, Method::STATIC, 0.54..0.56),
+        (&turning_ball, Method::BLUR, 0.2..0.5),
+    ] {
+        let (full, _) = draw_with(scene, &method, Lod::Off);
+        let (merged, outcome) = draw_with(scene, &method, Lod::Auto);
+        let share = back(&outcome);
+        assert!(
+            left_out.contains(&share),
+            "{}: {share} of the surfels left out",
+            method.name()
+        );
+        // Leaving out a surfel the render draws at some instant would take its light.
+        let (e_full, e_merged) = (energy(&full), energy(&merged));
+        assert!(
+            (e_merged / e_full - 1.0).abs() < 0.01,
+            "{}: {e_merged} vs {e_full}",
+            method.name()
+        );
+    }
+}
+
+#[test]
 fn longer_cells_on_a_curved_surface_gather_more_surfels_each() {
     // A ball of 1 px surfels falling 110 px. A cell along the motion is cut by normal and depth
     // into runs of one surface; a longer cell may hold more runs, but each longer run holds more

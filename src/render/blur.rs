@@ -10,7 +10,7 @@
 //! scene's surfel objects here, over its triangles.
 
 use super::{draw, Exposure, Render, Stats};
-use crate::plan::{ObjectMotion, Plan};
+use crate::plan::{segment_ends, ObjectMotion, Plan};
 use crate::project::{
     middle_instants, motion_ellipse, object_footprints_at, per_surfel, view_surfel, Cull, Instant,
     SubSegmentView, SurfelView,
@@ -43,9 +43,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan) -> Render {
             );
             continue;
         };
-        let mut times: Vec<f64> = segments.iter().map(|s| s[0]).collect();
-        times.extend(segments.last().map(|s| s[1]));
-        let instants: Vec<Instant> = times
+        let instants: Vec<Instant> = segment_ends(segments)
             .iter()
             .map(|&t| Instant::new(camera, &object.motion.pose_at(t)))
             .collect();
