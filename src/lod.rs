@@ -313,7 +313,12 @@ pub fn merge(
     let mut start = 0;
     while start < keyed.len() {
         let (key, _, length) = keyed[start];
-        let end = start + keyed[start..].partition_point(|&(k, ..)| k == key);
+        // Groups hold a few surfels: a scan reads only them, where a binary search over the
+        // rest of the list missed the cache at every step.
+        let end = keyed[start..]
+            .iter()
+            .position(|&(k, ..)| k != key)
+            .map_or(keyed.len(), |n| start + n);
         let group = keyed[start..end]
             .iter()
             .map(|&(_, i, _)| &surfels[i as usize]);
