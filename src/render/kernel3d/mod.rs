@@ -19,7 +19,7 @@ mod kernel;
 use super::{instant_layer, MethodStats, Render, Stats, Subframes, MAX_SUBFRAMES};
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
-use crate::project::{Cull, Culled, Instant};
+use crate::project::{facing, Cull, Culled, Instant};
 use crate::raster::{Rejection, TileGrid, TileLists, TILE_PX};
 use crate::render::abuffer::{
     compact, resolve_approximate, resolve_exact, Compaction, Fragment, Resolved, SubFrameBins,
@@ -350,10 +350,8 @@ fn kernels_over(
                 return Err(Cull::BehindNear);
             }
             // Facing cosines at the ends, positive towards the camera.
-            let cosine = |instant: &Instant, p: DVec3| {
-                let n = instant.view_vector(surfel.normal);
-                -n.dot(p) / (n.length() * p.length())
-            };
+            let cosine =
+                |instant: &Instant, p: DVec3| facing(p, instant.view_vector(surfel.normal));
             let (c0, c1) = (cosine(start, p0), cosine(end, p1));
             let density = surfel.area / surfel.axis_u.cross(surfel.axis_v).length();
             let kernel = |[p0, p1]: [DVec3; 2], middle: &Instant, window: [f64; 2]| {
