@@ -33,11 +33,18 @@ use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth, RayHit};
 pub const MAX_TRIANGLE_ITEMS: usize = 1 << 24;
 
 /// Most intervals one spatial sample keeps (about 10 kB): past it the list is resolved to its
-/// visible pieces (Gribel's compression); when that is still full, each triangle's consecutive
-/// pieces are joined into one line; and only then is the farthest interval dropped (all
-/// counted). The armadillo spinning over its floor peaks at 190 at 512² (64 dropped front
-/// pieces and showed the background through the body).
+/// visible pieces (Gribel's compression); when that leaves less than [`LIST_SLACK`] free, each
+/// triangle's consecutive pieces are joined into one line; and only then are the shortest
+/// pieces dropped, down to that slack (all counted). The armadillo spinning over its floor
+/// peaks at 190 at 512² (64 dropped front pieces and showed the background through the body).
 pub const MAX_INTERVALS_PER_SAMPLE: usize = 256;
+
+/// Room a full list's compression leaves, at least, for the intervals that follow, so that a
+/// sample compresses at most once per this many of them. A sample with more visible pieces than
+/// the cap (a cube zig-zagging over a floor 150 times in one exposure) otherwise resolved its
+/// whole list again for every interval after the first 256: `analytic` took 21 s at 64 × 48,
+/// and over a minute at 250 zig-zags.
+const LIST_SLACK: usize = MAX_INTERVALS_PER_SAMPLE / 4;
 
 /// Gauss–Legendre nodes and weights on [−1, 1], three points: exact for polynomials of degree 5,
 /// enough for a Lambert term turning within one visible piece.
@@ -1978,6 +1985,8 @@ struct Scratch {
     covered_all_along: Vec<f64>,
     resolving: ResolveScratch,
     visible: Vec<Interval>,
+    /// A full list's intervals by length, for dropping the shortest.
+    by_length: Vec<(f64, u32)>,
     /// One covered interval's depth pieces, before they enter a list.
     pieces: Vec<Interval>,
     shading: ShadingScratch,
@@ -2106,6 +2115,7 @@ impl Scratch {
         pieces: &impl BentDepth,
         stats: &mut TriangleStats,
     ) {
+        let room = MAX_INTERVALS_PER_SAMPLE - LIST_SLACK;
         if self.lists[sample].len() >= MAX_INTERVALS_PER_SAMPLE {
             stats.compressed += 1;
             self.visible.clear();
@@ -2118,44 +2128,98 @@ impl Scratch {
             let list = &mut self.lists[sample];
             list.clear();
             list.extend_from_slice(&self.visible);
+            if list.len() > room {
+                // Nearly full of visible pieces: join each item's consecutive pieces into one
+                // line (its depth bends no longer followed, its coverage kept).
+                stats.joined += 1;
+                list.dedup_by(|next, last| {
+                    let joins = last.item == next.item && last.t[1] == next.t[0];
+                    if joins {
+                        last.t[1] = next.t[1];
+                        last.depth[1] = next.depth[1];
+                        last.bends = false;
+                    }
+                    joins
+                });
+            }
+            if list.len() > room {
+                // Still nearly full: the shortest pieces go, the new interval among them, down
+                // to the slack.
+                list.push(interval);
+                stats.intervals += 1;
+                stats.dropped += list.len() - room;
+                drop_shortest(list, room, &mut self.by_length);
+                return;
+            }
         }
         let list = &mut self.lists[sample];
-        if list.len() >= MAX_INTERVALS_PER_SAMPLE {
-            // Still full of visible pieces: join each item's consecutive pieces into one line
-            // (its depth bends no longer followed, its coverage kept).
-            stats.joined += 1;
-            list.dedup_by(|next, last| {
-                let joins = last.item == next.item && last.t[1] == next.t[0];
-                if joins {
-                    last.t[1] = next.t[1];
-                    last.depth[1] = next.depth[1];
-                    last.bends = false;
-                }
-                joins
-            });
-        }
-        if list.len() >= MAX_INTERVALS_PER_SAMPLE {
-            // Still full: the farthest interval goes, the new one or the one already held.
-            stats.dropped += 1;
-            let nearest = |i: &Interval| i.depth[0].min(i.depth[1]);
-            if let Some(farthest) = list
-                .iter_mut()
-                .max_by(|a, b| nearest(a).total_cmp(&nearest(b)))
-                .filter(|f| nearest(f) > nearest(&interval))
-            {
-                *farthest = interval;
-            }
-            return;
-        }
         list.push(interval);
         stats.intervals += 1;
         stats.peak_per_sample = stats.peak_per_sample.max(list.len());
     }
 }
 
+/// Keep the `keep` longest intervals of `list` (ties to the earlier), in their order: the list
+/// holds visible pieces, and the shortest show the least.
+fn drop_shortest(list: &mut Vec<Interval>, keep: usize, longest_first: &mut Vec<(f64, u32)>) {
+    longest_first.clear();
+    longest_first.extend(
+        list.iter()
+            .zip(0..)
+            .map(|(i, index)| (i.t[0] - i.t[1], index)),
+    );
+    longest_first.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut kept = vec![false; list.len()];
+    for &(_, index) in &longest_first[..keep.min(list.len())] {
+        kept[index as usize] = true;
+    }
+    let mut flags = kept.iter();
+    list.retain(|_| *flags.next().expect("one flag per interval"));
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_sample_with_more_visible_pieces_than_it_holds_compresses_seldom_and_keeps_the_longest() {
+        // 2,000 pieces one after another in time, alternately of two items (nothing joins), the
+        // odd ones five times longer: every piece is visible, far more than a list holds.
+        let mut scratch = Scratch::default();
+        scratch.reset(1);
+        let mut stats = TriangleStats::default();
+        let mut t = 0.0;
+        for k in 0..2000u32 {
+            let length = if k % 2 == 1 { 5e-4 } else { 1e-4 };
+            let piece = Interval {
+                t: [t, t + length],
+                depth: [1.0 + f64::from(k % 7), 1.0],
+                item: k % 2,
+                bends: false,
+            };
+            t += length;
+            scratch.push(0, piece, &intervals::AsIs, &mut stats);
+            assert!(scratch.lists[0].len() <= MAX_INTERVALS_PER_SAMPLE);
+        }
+        // Each compression leaves room for LIST_SLACK more: at most one per that many pieces
+        // past the first full list.
+        let most = (2000 - MAX_INTERVALS_PER_SAMPLE) / LIST_SLACK + 1;
+        assert!(
+            stats.compressed <= most,
+            "{} compressions",
+            stats.compressed
+        );
+        assert!(stats.dropped > 0);
+        // What was dropped was short: all but a few of the long pieces are kept.
+        let long = scratch.lists[0]
+            .iter()
+            .filter(|i| i.t[1] - i.t[0] > 2e-4)
+            .count();
+        assert!(
+            long >= scratch.lists[0].len() - LIST_SLACK,
+            "{long} long pieces"
+        );
+    }
 
     #[test]
     fn a_corner_on_an_arc_follows_its_least_squares_line_and_a_straight_path_keeps_its_chord() {
