@@ -462,7 +462,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
         LodName::Auto => Lod::Auto,
         LodName::Off => Lod::Off,
     };
-    let plan = Plan::with_lod(&scene, &method, lod).map_err(as_option)?;
+    let plan =
+        Plan::with_lod(&scene, &method, lod).map_err(|error| error.in_file(&args.scene, ""))?;
     if matches!(method, Method::Analytic { .. }) && !plan.any_triangles() {
         eprintln!(
             "note: no object of {} is drawn as triangles (`draw = \"triangles\"` on a mesh); \

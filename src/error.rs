@@ -123,5 +123,31 @@ impl std::error::Error for Error {
     }
 }
 
+/// `value` as a message shows it: plainly where that is short, in scientific notation where
+/// plain digits would run to dozens (10⁻³⁰⁰ is 300 zeros).
+#[must_use]
+pub fn shown(value: f64) -> String {
+    if value == 0.0 || !value.is_finite() || (1e-4..1e15).contains(&value.abs()) {
+        value.to_string()
+    } else {
+        format!("{value:e}")
+    }
+}
+
 /// Result with streak's error.
 pub type Result<T> = std::result::Result<T, Error>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_are_shown_plainly_unless_that_runs_long() {
+        assert_eq!(shown(36.0), "36");
+        assert_eq!(shown(0.001), "0.001");
+        assert_eq!(shown(0.0), "0");
+        assert_eq!(shown(-2.5e-300), "-2.5e-300");
+        assert_eq!(shown(1e300), "1e300");
+        assert_eq!(shown(f64::NAN), "NaN");
+    }
+}

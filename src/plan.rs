@@ -288,7 +288,7 @@ impl<'a> Plan<'a> {
                 .sources()
                 .filter(|source| source.shadows())
                 .map(|source| light_camera(&source, scene, &plan))
-                .collect();
+                .collect::<Result<_>>()?;
         }
         Ok(plan)
     }

@@ -7,7 +7,7 @@
 //! shutter close over an alpha-blended trail of its own colours (Guan & Mueller §3.1, the
 //! flash-and-trail photograph).
 
-use crate::error::{Error, Result};
+use crate::error::{shown, Error, Result};
 pub use crate::raster::{Profile, Texture};
 use crate::scene::{finite, rgb};
 use serde::Deserialize;
@@ -15,6 +15,12 @@ use std::path::PathBuf;
 
 /// Most stroboscopic copies a trail may be cut into.
 pub const MAX_COPIES: u32 = 64;
+
+/// Least share of the emitting points a sparse trail may keep. Each kept point's splat is made
+/// 1/density heavier; at 10⁻³⁹ and below that weight overflowed the rasterizer's single
+/// precision and left NaN pixels, and far above it a trail of one point in ten thousand is
+/// already a few scattered strokes.
+pub const MIN_TRAIL_DENSITY: f64 = 1e-4;
 
 /// Most speed lines drawn.
 pub const MAX_SPEED_LINES: u32 = 10_000;
@@ -126,8 +132,8 @@ pub struct Trail {
     pub composite: Composite,
     /// Weight multiplier of the trail splats.
     pub intensity: f64,
-    /// Share of the emitting points that do emit, in (0, 1], their splats made heavier in
-    /// proportion: sparse, separate strokes for textured looks.
+    /// Share of the emitting points that do emit, in [[`MIN_TRAIL_DENSITY`], 1], their splats
+    /// made heavier in proportion: sparse, separate strokes for textured looks.
     pub density: f64,
     /// Scale of each trail splat's own size (its spread across the motion), its weight scaled
     /// by the change of area so that its amplitude stays.
@@ -261,7 +267,7 @@ impl Style {
         share("trail.duty", t.duty)?;
         within("trail.intensity", t.intensity, 0.0, 100.0)?;
         within("trail.width", t.width, 0.1, 20.0)?;
-        share("trail.density", t.density)?;
+        within("trail.density", t.density, MIN_TRAIL_DENSITY, 1.0)?;
         within("trail.fade", t.fade, 0.0, 1.0)?;
         let s = &self.speed_lines;
         count("speed_lines.count", s.count, MAX_SPEED_LINES)?;
@@ -296,7 +302,7 @@ fn within(field: &str, v: f64, lo: f64, hi: f64) -> Result<f64> {
     } else {
         Err(Error::invalid(
             field,
-            format!("{v}: must be between {lo} and {hi}"),
+            format!("{}: must be between {lo} and {hi}", shown(v)),
         ))
     }
 }
@@ -308,7 +314,7 @@ fn share(field: &str, v: f64) -> Result<f64> {
     } else {
         Err(Error::invalid(
             field,
-            format!("{v}: must be greater than 0 and at most 1"),
+            format!("{}: must be greater than 0 and at most 1", shown(v)),
         ))
     }
 }

@@ -351,3 +351,20 @@ fn twelve_thousand_pixels_of_motion_stay_finite_and_faint() {
         "{p:?} vs {expected}"
     );
 }
+
+#[test]
+fn the_sparsest_trail_allowed_stays_finite_and_a_sparser_one_is_refused() {
+    use streak::style::MIN_TRAIL_DENSITY;
+    // Each kept point is 1/density heavier: at 10⁻³⁰⁰ that overflowed single precision and
+    // left NaN pixels; the floor keeps it finite.
+    let sparsest = style(&format!("[trail]\ndensity = {MIN_TRAIL_DENSITY}"));
+    let image = hint(&sliding_square(6.0), &sparsest).image;
+    assert!(image.pixels.iter().flatten().all(|c| c.is_finite()));
+    let error = Style::parse("[trail]\ndensity = 1e-300", Path::new("sparse.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("trail.density: 1e-300: must be between 0.0001 and 1"),
+        "{error}"
+    );
+}

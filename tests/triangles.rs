@@ -579,6 +579,59 @@ fn more_shadowed_lights_than_the_cap_are_refused_by_name() {
 }
 
 #[test]
+fn a_light_whose_shadow_map_cannot_be_made_is_refused_by_name() {
+    use streak::scene::Spot;
+    // A non-square image: a shadow map that fell back to the scene's camera was read as square
+    // and indexed past its tiles.
+    let camera = Camera::new(
+        DVec3::new(0.0, 0.0, 10.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        20.0,
+        12,
+        9,
+    )
+    .unwrap();
+    let floor = |x: f64| object("floor", &square(2.0), [1.0; 3], &[(0.0, at(x, 0.0, 0.0))]);
+    let spot =
+        |distance: f64| Spot::new(DVec3::splat(distance), DVec3::ZERO, 30.0, 1.0, true).unwrap();
+    let sun = Light::new(DVec3::new(0.3, 1.0, 0.2), 0.5)
+        .unwrap()
+        .with_shadows(true);
+    // A second floor `x` to the right.
+    let with = |lighting: Lighting, x: f64| {
+        Scene::new(camera.clone())
+            .with_lighting(lighting)
+            .with_object(floor(0.0))
+            .with_object(floor(x))
+    };
+    let spot_at = |distance| {
+        Lighting::new(0.1, Vec::new())
+            .unwrap()
+            .with_spots(vec![spot(distance)])
+    };
+    let sun_over = |x| with(Lighting::new(0.1, vec![sun]).unwrap(), x);
+    // A spot 10¹⁸ away cannot step along its direction in double precision; triangles 10³⁰⁰
+    // apart put a directional light's view of them at infinity.
+    for (scene, light) in [
+        (with(spot_at(1e18), 3.0), "spot"),
+        (sun_over(1e300), "directional"),
+    ] {
+        let Err(error) = Plan::new(&scene, &Method::ANALYTIC) else {
+            panic!("the {light} light's shadow map was made");
+        };
+        let error = error.to_string();
+        assert!(
+            error.contains("lighting") && error.contains(light) && error.contains("shadow map"),
+            "{error}"
+        );
+    }
+    for scene in [with(spot_at(10.0), 3.0), sun_over(3.0)] {
+        assert!(all_finite(&render(&scene, &Method::ANALYTIC).image));
+    }
+}
+
+#[test]
 fn only_receivers_that_sweep_texels_and_may_be_shadowed_are_point_sampled() {
     // A square sliding under a light with nothing above it: lit for sure all along, so none of
     // its pieces is point-sampled, though it sweeps many shadow-map texels. A floor rising under

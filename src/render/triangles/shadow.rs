@@ -18,6 +18,7 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 use super::intervals::Interval;
+use crate::error::{Error, Result};
 use crate::math::floor_to_i64;
 use crate::plan::Plan;
 use crate::scene::{Camera, LightSource, Scene, Shutter};
@@ -69,8 +70,11 @@ pub struct Receiver {
 /// The camera of `source`'s shadow map: the spot's own view of its cone, or for a directional
 /// light a narrow perspective view from far along its direction, framing the triangle objects'
 /// bounds over the exposure (the plan makes them once, [`Plan::shadow_cameras`]).
-#[must_use]
-pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Camera {
+///
+/// Errors: a spot so far from the origin that one step along its direction does not change its
+/// position in double precision, or triangles so far out that a directional light's view of
+/// them overflows; the error names the light and what would be right.
+pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Result<Camera> {
     let size = scene.lighting.shadow_map;
     let up = |direction: DVec3| {
         if direction.cross(DVec3::Y).length() > 1e-3 {
@@ -106,11 +110,24 @@ pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Camera 
             .and_then(|c| c.with_near(distance - 1.5 * radius))
         }
     };
-    // Both are well formed: a spot's target differs from its position and its angle is in
-    // range; a directional camera looks at a centre it is far from.
     camera
         .and_then(|c| c.with_spatial_samples(1))
-        .unwrap_or_else(|_| scene.camera.clone())
+        .map_err(|error| {
+            let (light, remedy) = match source {
+                LightSource::Spot(s) => (
+                    format!("the spot light at {}", s.position),
+                    "place it nearer the scene, or use a directional light for a distant source",
+                ),
+                LightSource::Directional(l) => (
+                    format!("the directional light along {}", l.direction),
+                    "keep the triangle objects within a finite, double-precision distance of the origin",
+                ),
+            };
+            Error::invalid(
+                "lighting",
+                format!("{light} casts shadows, but its shadow map's camera cannot be made ({error}): {remedy}"),
+            )
+        })
 }
 
 /// Centre and radius of a sphere around every triangle object drawn as triangles, at every
