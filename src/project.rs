@@ -103,6 +103,7 @@ pub fn view_surfel(
 
 /// Cosine between a view-space normal at `p_view` and the direction to the camera: positive when
 /// the surface faces it.
+#[inline]
 pub(crate) fn facing(p_view: DVec3, normal_view: DVec3) -> f64 {
     -normal_view.dot(p_view) / (normal_view.length() * p_view.length())
 }
