@@ -297,7 +297,7 @@ pub fn merge(
     // would cost its share of the pass, and could only pull a group's normal away from what
     // full detail shows.
     let drawn = |s: &Surfel| culling.is_empty() || culling.iter().any(|i| faces_camera(i, s));
-    let mut keyed: Vec<(PackedKey, u32, Option<i16>)> = surfels
+    let mut keyed: Vec<Keyed> = surfels
         .par_iter()
         .enumerate()
         .filter(|(_, s)| drawn(s))
@@ -308,32 +308,22 @@ pub fn merge(
         .collect();
     let back_facing = surfels.len() - keyed.len();
     keyed.par_sort_unstable_by_key(|&(key, i, _)| (key, i));
-    let mut merged = Vec::new();
+    // Runs of about RUN_ITEMS sorted items, cut between groups, merge in parallel; joined in
+    // order they give what one pass would, whatever the thread count.
+    let mut cuts = vec![0];
+    while let Some(&last) = cuts.last().filter(|&&c| c < keyed.len()) {
+        cuts.push(group_end(&keyed, (last + RUN_ITEMS).min(keyed.len()) - 1));
+    }
+    let runs: Vec<(Vec<Surfel>, f64, f64)> = cuts
+        .par_windows(2)
+        .map(|run| merge_run(&keyed[run[0]..run[1]], surfels, &grid))
+        .collect();
+    let mut merged = Vec::with_capacity(runs.iter().map(|r| r.0.len()).sum());
     let (mut longest_cell_px, mut widest_cell_px) = (0.0f64, 0.0f64);
-    let mut start = 0;
-    while start < keyed.len() {
-        let (key, _, length) = keyed[start];
-        // Groups hold a few surfels: a scan reads only them, where a binary search over the
-        // rest of the list missed the cache at every step.
-        let end = keyed[start..]
-            .iter()
-            .position(|&(k, ..)| k != key)
-            .map_or(keyed.len(), |n| start + n);
-        let group = keyed[start..end]
-            .iter()
-            .map(|&(_, i, _)| &surfels[i as usize]);
-        match length {
-            None => merged.extend(group.copied()),
-            Some(length) => {
-                if end - start > 1 {
-                    let length_px = grid.cell_length(grid.bucket_path(length));
-                    longest_cell_px = longest_cell_px.max(length_px);
-                    widest_cell_px = widest_cell_px.max(grid.across_of(length_px));
-                }
-                merge_group(group, end - start, &mut merged);
-            }
-        }
-        start = end;
+    for (run, longest, widest) in runs {
+        merged.extend(run);
+        longest_cell_px = longest_cell_px.max(longest);
+        widest_cell_px = widest_cell_px.max(widest);
     }
     ObjectLod {
         outcome: LodOutcome::Merged {
@@ -346,6 +336,50 @@ pub fn merge(
         },
         merged: Some(Arc::new(merged)),
     }
+}
+
+/// Sorted items per run of the merge, at least: enough that a run's start-up is nothing beside
+/// its merges.
+const RUN_ITEMS: usize = 1 << 14;
+
+/// A cell-key-sorted item with its surfel's index and length bucket.
+type Keyed = (PackedKey, u32, Option<i16>);
+
+/// The end of the group holding item `i` of `keyed`: a group holds a few surfels, so a scan reads
+/// only them, where a binary search over the rest of the list missed the cache at every step.
+fn group_end(keyed: &[Keyed], i: usize) -> usize {
+    let key = keyed[i].0;
+    keyed[i..]
+        .iter()
+        .position(|&(k, ..)| k != key)
+        .map_or(keyed.len(), |n| i + n)
+}
+
+/// Merge each group of the sorted items `keyed` (whole groups only) of `surfels`; with the
+/// longest and widest cell that merged more than one surfel, px.
+fn merge_run(keyed: &[Keyed], surfels: &[Surfel], grid: &Grid) -> (Vec<Surfel>, f64, f64) {
+    let mut merged = Vec::new();
+    let (mut longest_cell_px, mut widest_cell_px) = (0.0f64, 0.0f64);
+    let mut start = 0;
+    while start < keyed.len() {
+        let end = group_end(keyed, start);
+        let group = keyed[start..end]
+            .iter()
+            .map(|&(_, i, _)| &surfels[i as usize]);
+        match keyed[start].2 {
+            None => merged.extend(group.copied()),
+            Some(length) => {
+                if end - start > 1 {
+                    let length_px = grid.cell_length(grid.bucket_path(length));
+                    longest_cell_px = longest_cell_px.max(length_px);
+                    widest_cell_px = widest_cell_px.max(grid.across_of(length_px));
+                }
+                merge_group(group, end - start, &mut merged);
+            }
+        }
+        start = end;
+    }
+    (merged, longest_cell_px, widest_cell_px)
 }
 
 /// Which group a surfel belongs to. `Alone` surfels (behind the near plane at some instant, or
