@@ -132,7 +132,7 @@ pub struct Trail {
     pub composite: Composite,
     /// Weight multiplier of the trail splats.
     pub intensity: f64,
-    /// Share of the emitting points that do emit, in [[`MIN_TRAIL_DENSITY`], 1], their splats
+    /// Share of the emitting points that do emit, from [`MIN_TRAIL_DENSITY`] to 1, their splats
     /// made heavier in proportion: sparse, separate strokes for textured looks.
     pub density: f64,
     /// Scale of each trail splat's own size (its spread across the motion), its weight scaled

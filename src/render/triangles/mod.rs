@@ -44,7 +44,7 @@ pub const MAX_INTERVALS_PER_SAMPLE: usize = 256;
 /// the cap (a cube zig-zagging over a floor 150 times in one exposure) otherwise resolved its
 /// whole list again for every interval after the first 256: `analytic` took 21 s at 64 × 48,
 /// and over a minute at 250 zig-zags.
-const LIST_SLACK: usize = MAX_INTERVALS_PER_SAMPLE / 4;
+pub const LIST_SLACK: usize = MAX_INTERVALS_PER_SAMPLE / 4;
 
 /// Gauss–Legendre nodes and weights on [−1, 1], three points: exact for polynomials of degree 5,
 /// enough for a Lambert term turning within one visible piece.
