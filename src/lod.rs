@@ -16,7 +16,8 @@
 //!
 //! The grid is rotated to one of `DIRECTION_BUCKETS` directions nearest each surfel's screen
 //! motion, and its length quantized to quarter octaves of the path, so that neighbours moving
-//! alike fall into the same cells.
+//! alike fall into the same cells. Surfels the render never draws, facing away at every instant
+//! it culls at, are left out first (docs/math.md, "Only what is drawn").
 
 use crate::math::{floor_to_i64, round_to_i64, Sym2};
 use crate::project::{faces_camera, Instant, DEPTH_TOLERANCE_SIGMAS};
