@@ -292,12 +292,12 @@ pub fn merge(
         }
     }
 
-    // Sorted by key and then index, the key packed: cells, and surfels within each, come in
-    // the order of (CellKey, index). The length bucket rides along for the summary.
     // A surfel facing away at every instant the renderer culls at is never drawn: merging it
     // would cost its share of the pass, and could only pull a group's normal away from what
     // full detail shows.
     let drawn = |s: &Surfel| culling.is_empty() || culling.iter().any(|i| faces_camera(i, s));
+    // Sorted by key and then index, the key packed: cells, and surfels within each, come in
+    // the order of (CellKey, index). The length bucket rides along for the summary.
     let mut keyed: Vec<Keyed> = surfels
         .par_iter()
         .enumerate()

@@ -2116,6 +2116,7 @@ impl Scratch {
         stats: &mut TriangleStats,
     ) {
         let room = MAX_INTERVALS_PER_SAMPLE - LIST_SLACK;
+        let mut crowded = false;
         if self.lists[sample].len() >= MAX_INTERVALS_PER_SAMPLE {
             stats.compressed += 1;
             self.visible.clear();
@@ -2142,19 +2143,17 @@ impl Scratch {
                     joins
                 });
             }
-            if list.len() > room {
-                // Still nearly full: the shortest pieces go, the new interval among them, down
-                // to the slack.
-                list.push(interval);
-                stats.intervals += 1;
-                stats.dropped += list.len() - room;
-                drop_shortest(list, room, &mut self.by_length);
-                return;
-            }
+            crowded = list.len() > room;
         }
         let list = &mut self.lists[sample];
         list.push(interval);
         stats.intervals += 1;
+        if crowded {
+            // Still nearly full: the shortest pieces go, the new interval among them, down to
+            // the slack.
+            stats.dropped += list.len() - room;
+            drop_shortest(list, room, &mut self.by_length);
+        }
         stats.peak_per_sample = stats.peak_per_sample.max(list.len());
     }
 }
