@@ -14,6 +14,8 @@ pub(crate) mod intervals;
 pub(crate) mod shadow;
 pub(crate) mod tct;
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use glam::{DAffine3, DMat3, DVec2, DVec3};
 use rayon::prelude::*;
 
@@ -25,7 +27,8 @@ use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, ShutterShape, TriangleMesh};
 use intervals::{resolve, AsIs, BentDepth, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
-use shadow::{Casters, Occluder, Occluders, Receiver, ShadowMap};
+use shadow::{cap_within, Casters, Occluder, Occluders, Receiver, ShadowMap};
+pub use shadow::{ShadowLists, MAX_SHADOW_PIECES};
 use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth, RayHit};
 
 /// Most triangle items (a triangle over one sub-segment, 28 bytes each plus its corners) one
@@ -151,6 +154,8 @@ pub struct TriangleStats {
     /// Item × shadow-map tile pairs left out: objects that cannot shadow themselves, wholly
     /// deeper there than every other object.
     pub shadow_items_left_out: usize,
+    /// What the shadow maps' texel lists hold and left out.
+    pub shadow_lists: ShadowLists,
 }
 
 impl TriangleStats {
@@ -169,6 +174,21 @@ impl TriangleStats {
                 "  shadow maps: {} item × tile pairs left out, and {} of {} tiles left empty (objects that cannot shadow themselves, wholly deeper there than every other object)\n",
                 self.shadow_items_left_out, self.shadow_tiles_left_empty, self.shadow_tiles
             ));
+            let lists = &self.shadow_lists;
+            out.push_str(&format!(
+                "  shadow-map texels: {} occluder pieces held ({:.1} MiB), at most {} on one texel; {} texel lists compressed, {} intervals dropped from full ones\n",
+                lists.pieces,
+                (lists.pieces * std::mem::size_of::<Occluder>()) as f64 / f64::from(1 << 20),
+                lists.peak_per_texel,
+                lists.compressed,
+                lists.dropped
+            ));
+            if let Some(cap) = lists.cap {
+                out.push_str(&format!(
+                    "  shadow-map budget ({MAX_SHADOW_PIECES} pieces over a render's maps) spent: each texel kept its {cap} longest pieces, {} shorter ones left out (shadows that short are missing; a smaller shadow_map keeps more per texel)\n",
+                    lists.cut
+                ));
+            }
         }
         if self.intervals > 0 {
             out.push_str(&format!(
@@ -201,6 +221,7 @@ impl TriangleStats {
         self.shadow_tiles += other.shadow_tiles;
         self.shadow_tiles_left_empty += other.shadow_tiles_left_empty;
         self.shadow_items_left_out += other.shadow_items_left_out;
+        self.shadow_lists.add(&other.shadow_lists);
     }
 }
 
@@ -305,6 +326,7 @@ pub struct TriangleImage {
 #[must_use]
 pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
     let scene = plan.scene();
+    let budget = MAX_SHADOW_PIECES / plan.shadow_cameras.len().max(1);
     let shadows = plan
         .shadow_cameras
         .iter()
@@ -312,7 +334,7 @@ pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
             let map = ShadowMap::new(
                 Prepared::new(plan, camera.clone(), exposure, Vec::new())
                     .with_depth_tolerance(shadow::DEPTH_TOLERANCE_TEXELS)
-                    .occluders(),
+                    .occluders_within(budget),
             );
             match exposure {
                 Exposure::Shutter => map.summarised(),
@@ -575,6 +597,13 @@ impl<'a> Prepared<'a> {
             shadow_tiles: self.shadows.iter().map(ShadowMap::tiles).sum(),
             shadow_tiles_left_empty: self.shadows.iter().map(ShadowMap::left_empty).sum(),
             shadow_items_left_out: self.shadows.iter().map(ShadowMap::left_out).sum(),
+            shadow_lists: self
+                .shadows
+                .iter()
+                .fold(ShadowLists::default(), |mut all, map| {
+                    all.add(&map.lists());
+                    all
+                }),
             ..TriangleStats::default()
         };
         for s in &stats {
@@ -1524,82 +1553,136 @@ impl<'a> Prepared<'a> {
         lighting.ambient + direct
     }
 
-    /// The occluders of every texel, seen from this (a light's) camera with one sample per texel.
-    fn occluders(&self) -> Occluders {
+    /// The occluders of every texel, seen from this (a light's) camera with one sample per texel,
+    /// at most `budget` pieces (or one per texel, where there are
+    /// more texels). Tiles are built in parallel, each keeping its lists while the pieces held so
+    /// far fit; once they would not, the rest are only counted, and at the end, if the map did not
+    /// fit, every texel's list is cut to its longest pieces, as many as fit ([`cap_within`]),
+    /// the tiles that were only counted built again. Which tiles were held depends on the thread
+    /// schedule, the result does not: a map that fits was held whole, and one that does not is
+    /// cut alike everywhere. At most about twice the budget is held while it is cut.
+    fn occluders_within(&self, budget: usize) -> Occluders {
         let camera = &self.camera;
         let grid = TileGrid::new(camera.width, camera.height);
+        let budget = budget.max((camera.width * camera.height) as usize);
         let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
         let pool = ScratchPool::default();
-        // Per tile: its texels' lists, whether all its items were left out, and how many were.
-        let tiles: Vec<(Vec<u32>, Vec<Occluder>, usize, usize)> = (0..grid.count())
+        let build = |tile: usize| -> ShadowTile {
+            let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
+            let texels = ((x1 - x0) * (y1 - y0)) as usize;
+            let all = lists.list(tile);
+            let list = self.casting(all, bounds);
+            let mut built = ShadowTile {
+                left_out: all.len() - list.len(),
+                ..ShadowTile::default()
+            };
+            if list.is_empty() {
+                built.left_empty = built.left_out > 0;
+                return built;
+            }
+            pool.with(|scratch| {
+                let mut stats = TriangleStats::default();
+                let depth = DepthPieces::AtOnce;
+                self.fill_tile(&list, bounds, &offsets, depth, scratch, &mut stats);
+                built.compressed = stats.compressed;
+                built.dropped = stats.dropped;
+                built.starts.reserve(texels + 1);
+                built.starts.push(0u32);
+                for texel in 0..texels {
+                    match self.exposure {
+                        Exposure::Instant(t) => {
+                            if let Some((depth, index)) = scratch.nearest[texel] {
+                                built.pieces.push(Interval {
+                                    t: [t, t],
+                                    depth: [depth, depth],
+                                    item: index,
+                                    bends: false,
+                                });
+                            }
+                        }
+                        Exposure::Shutter => {
+                            let Scratch {
+                                lists, resolving, ..
+                            } = scratch;
+                            resolve(&lists[texel], resolving, &mut built.pieces, &AsIs);
+                        }
+                    }
+                    built.starts.push(built.pieces.len() as u32);
+                }
+            });
+            // A tile that holds no occluder keeps no starts either.
+            if built.pieces.is_empty() {
+                built.starts = Vec::new();
+            }
+            built
+        };
+        let held = AtomicUsize::new(0);
+        let mut tiles: Vec<ShadowTile> = (0..grid.count())
             .into_par_iter()
             .with_max_len(1)
             .map(|tile| {
-                let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
-                let texels = ((x1 - x0) * (y1 - y0)) as usize;
-                let all = lists.list(tile);
-                let list = self.casting(all, bounds);
-                let left_out = all.len() - list.len();
-                if list.is_empty() {
-                    return (Vec::new(), Vec::new(), usize::from(left_out > 0), left_out);
+                let mut built = build(tile);
+                let pieces = built.pieces.len();
+                if held.fetch_add(pieces, Ordering::Relaxed) + pieces > budget {
+                    built.pieces = Vec::new();
+                    built.counted_only = true;
                 }
-                pool.with(|scratch| {
-                    let mut stats = TriangleStats::default();
-                    let depth = DepthPieces::AtOnce;
-                    self.fill_tile(&list, bounds, &offsets, depth, scratch, &mut stats);
-                    let mut starts = Vec::with_capacity(texels + 1);
-                    let mut found = Vec::new();
-                    starts.push(0u32);
-                    for texel in 0..texels {
-                        match self.exposure {
-                            Exposure::Instant(t) => {
-                                if let Some((depth, index)) = scratch.nearest[texel] {
-                                    found.push(Interval {
-                                        t: [t, t],
-                                        depth: [depth, depth],
-                                        item: index,
-                                        bends: false,
-                                    });
-                                }
-                            }
-                            Exposure::Shutter => {
-                                let Scratch {
-                                    lists, resolving, ..
-                                } = scratch;
-                                resolve(&lists[texel], resolving, &mut found, &AsIs);
-                            }
-                        }
-                        starts.push(found.len() as u32);
-                    }
-                    let occluders = found
-                        .into_iter()
-                        .map(|piece| {
-                            let item = &self.items[piece.item as usize];
-                            Occluder {
-                                piece,
-                                id: self.shadow_id(item),
-                            }
-                        })
-                        .collect::<Vec<Occluder>>();
-                    // A tile that holds no occluder keeps no starts either.
-                    if occluders.is_empty() {
-                        starts = Vec::new();
-                    }
-                    (starts, occluders, 0, left_out)
-                })
+                built
             })
             .collect();
-        let left_empty = tiles.iter().map(|(_, _, empty, _)| empty).sum();
-        let left_out = tiles.iter().map(|(_, _, _, left_out)| left_out).sum();
+        let counts = || {
+            tiles
+                .iter()
+                .flat_map(|t| t.starts.windows(2))
+                .map(|s| (s[1] - s[0]) as usize)
+        };
+        let mut lists_stats = ShadowLists {
+            pieces: counts().sum(),
+            peak_per_texel: counts().max().unwrap_or(0),
+            compressed: tiles.iter().map(|t| t.compressed).sum(),
+            dropped: tiles.iter().map(|t| t.dropped).sum(),
+            ..ShadowLists::default()
+        };
+        if lists_stats.pieces > budget {
+            let cap = cap_within(counts(), budget);
+            tiles
+                .par_iter_mut()
+                .enumerate()
+                .with_max_len(1)
+                .for_each(|(tile, built)| {
+                    if built.counted_only {
+                        *built = build(tile);
+                    }
+                    built.keep_longest(cap);
+                });
+            let pieces = tiles.iter().map(|t| t.pieces.len()).sum();
+            lists_stats.cap = Some(cap);
+            lists_stats.peak_per_texel = lists_stats.peak_per_texel.min(cap);
+            lists_stats.cut = lists_stats.pieces - pieces;
+            lists_stats.pieces = pieces;
+        }
+        let left_empty = tiles.iter().filter(|t| t.left_empty).count();
+        let left_out = tiles.iter().map(|t| t.left_out).sum();
         Occluders {
             camera: self.camera.clone(),
             tiles: tiles
                 .into_iter()
-                .map(|(starts, list, _, _)| (starts, list))
+                .map(|t| {
+                    let occluders = t
+                        .pieces
+                        .into_iter()
+                        .map(|piece| Occluder {
+                            piece,
+                            id: self.shadow_id(&self.items[piece.item as usize]),
+                        })
+                        .collect();
+                    (t.starts, occluders)
+                })
                 .collect(),
             left_empty,
             left_out,
+            lists: lists_stats,
         }
     }
 
@@ -2161,6 +2244,13 @@ impl Scratch {
 /// Keep the `keep` longest intervals of `list` (ties to the earlier), in their order: the list
 /// holds visible pieces, and the shortest show the least.
 fn drop_shortest(list: &mut Vec<Interval>, keep: usize, longest_first: &mut Vec<(f64, u32)>) {
+    let kept = longest(list, keep, longest_first);
+    let mut flags = kept.iter();
+    list.retain(|_| *flags.next().expect("one flag per interval"));
+}
+
+/// Which of `list`'s intervals are its `keep` longest (ties to the earlier).
+fn longest(list: &[Interval], keep: usize, longest_first: &mut Vec<(f64, u32)>) -> Vec<bool> {
     longest_first.clear();
     longest_first.extend(
         list.iter()
@@ -2172,13 +2262,189 @@ fn drop_shortest(list: &mut Vec<Interval>, keep: usize, longest_first: &mut Vec<
     for &(_, index) in &longest_first[..keep.min(list.len())] {
         kept[index as usize] = true;
     }
-    let mut flags = kept.iter();
-    list.retain(|_| *flags.next().expect("one flag per interval"));
+    kept
+}
+
+/// One tile of a shadow map as it is built: its texels' lists one after the other.
+#[derive(Default)]
+struct ShadowTile {
+    /// Where each texel's list starts (one more than the texels), or nothing when no texel holds
+    /// an occluder.
+    starts: Vec<u32>,
+    /// The occluder pieces, or nothing when they were only counted.
+    pieces: Vec<Interval>,
+    /// Whether the pieces were let go, the map's budget spent (`starts` still counts them).
+    counted_only: bool,
+    /// Every item that reached the tile was left out.
+    left_empty: bool,
+    /// Items left out of it.
+    left_out: usize,
+    /// Full texel lists compressed, and intervals dropped from them.
+    compressed: usize,
+    dropped: usize,
+}
+
+impl ShadowTile {
+    /// Keep each texel's `cap` longest pieces, in their order.
+    fn keep_longest(&mut self, cap: usize) {
+        let mut longest_first = Vec::new();
+        let mut pieces = Vec::new();
+        let mut starts = vec![0u32];
+        for s in self.starts.windows(2) {
+            let list = &self.pieces[s[0] as usize..s[1] as usize];
+            if list.len() > cap {
+                let kept = longest(list, cap, &mut longest_first);
+                pieces.extend(list.iter().zip(kept).filter(|(_, k)| *k).map(|(p, _)| *p));
+            } else {
+                pieces.extend_from_slice(list);
+            }
+            starts.push(pieces.len() as u32);
+        }
+        if pieces.is_empty() {
+            starts = Vec::new();
+        }
+        self.starts = starts;
+        self.pieces = pieces;
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_shadow_map_over_its_budget_keeps_each_texels_longest_pieces_whatever_the_threads() {
+        use crate::scene::{Keyframe, Light, Lighting, Motion, Pose};
+        use crate::surfels::{from_mesh, Colouring, Mesh};
+        let square = |h: f64| Mesh {
+            positions: vec![
+                DVec3::new(-h, -h, 0.0),
+                DVec3::new(h, -h, 0.0),
+                DVec3::new(h, h, 0.0),
+                DVec3::new(-h, h, 0.0),
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        };
+        let object = |name: &str, mesh: Mesh, keys: Vec<(f64, f64, f64)>| {
+            let colour = Colouring::Rgb([1.0; 3]);
+            let triangles = TriangleMesh::new(&mesh, DVec3::ZERO, colour).unwrap();
+            let mut surfels = from_mesh(&mesh, 100, false).unwrap();
+            colour.apply(&mut surfels);
+            let keyframes = keys
+                .into_iter()
+                .map(|(t, x, z)| Keyframe {
+                    t,
+                    pose: Pose {
+                        translation: DVec3::new(x, 0.0, z),
+                        ..Pose::IDENTITY
+                    },
+                })
+                .collect();
+            Object::triangles(name, triangles, surfels, Motion::new(keyframes).unwrap())
+        };
+        // A square crossing a floor 20 times under a light from above, in a 16 × 16 map: the
+        // texels on its way hold up to 40 pieces each, the square's and the floor's between.
+        let passes = 20;
+        let zigzag = (0..=passes)
+            .map(|i| {
+                (
+                    f64::from(i) / f64::from(passes),
+                    if i % 2 == 0 { -2.0 } else { 2.0 },
+                    1.0,
+                )
+            })
+            .collect();
+        let camera = Camera::new(
+            DVec3::new(0.0, 0.0, 10.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            30.0,
+            16,
+            16,
+        )
+        .unwrap();
+        let light = Light::new(DVec3::Z, 0.8).unwrap().with_shadows(true);
+        let lighting = Lighting::new(0.2, vec![light])
+            .unwrap()
+            .with_shadow_map(16)
+            .unwrap();
+        let scene = Scene::new(camera)
+            .with_lighting(lighting)
+            .with_object(object("floor", square(4.0), vec![(0.0, 0.0, 0.0)]))
+            .with_object(object("square", square(1.5), zigzag));
+        let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
+        let prepared = Prepared::new(
+            &plan,
+            plan.shadow_cameras[0].clone(),
+            Exposure::Shutter,
+            Vec::new(),
+        )
+        .with_depth_tolerance(shadow::DEPTH_TOLERANCE_TEXELS);
+        let texel_lists = |o: &Occluders| -> Vec<Vec<[f64; 2]>> {
+            o.tiles
+                .iter()
+                .flat_map(|(starts, list)| {
+                    let texels = if starts.is_empty() {
+                        TILE_PX * TILE_PX
+                    } else {
+                        0
+                    };
+                    let empty = (0..texels).map(|_| Vec::new());
+                    starts
+                        .windows(2)
+                        .map(|s| {
+                            list[s[0] as usize..s[1] as usize]
+                                .iter()
+                                .map(|o| o.piece.t)
+                                .collect()
+                        })
+                        .chain(empty)
+                        .collect::<Vec<_>>()
+                })
+                .collect()
+        };
+        let whole = prepared.occluders_within(usize::MAX);
+        let texels = 16 * 16;
+        assert_eq!(whole.lists.cap, None);
+        assert!(
+            whole.lists.pieces > 4 * texels,
+            "{:?} {} {} {}",
+            whole.lists,
+            whole.tiles.len(),
+            whole.left_empty,
+            whole.left_out
+        );
+        let budget = 2 * texels;
+        let counts: Vec<usize> = texel_lists(&whole).iter().map(Vec::len).collect();
+        let cap = cap_within(counts.iter().copied(), budget);
+        let kept: usize = counts.iter().map(|&c| c.min(cap)).sum();
+        let cut_with = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| prepared.occluders_within(budget))
+        };
+        let cut = cut_with(1);
+        assert_eq!(cut.lists.cap, Some(cap));
+        assert!(cap > 1 && kept <= budget);
+        assert_eq!(cut.lists.pieces, kept);
+        assert_eq!(cut.lists.cut, whole.lists.pieces - kept);
+        // Each texel's list is its `cap` longest pieces, in time order.
+        for (all, left) in texel_lists(&whole).iter().zip(texel_lists(&cut)) {
+            let mut longest: Vec<usize> = (0..all.len()).collect();
+            longest.sort_by(|&a, &b| {
+                (all[b][1] - all[b][0])
+                    .total_cmp(&(all[a][1] - all[a][0]))
+                    .then(a.cmp(&b))
+            });
+            longest.truncate(cap);
+            longest.sort_unstable();
+            let expected: Vec<[f64; 2]> = longest.iter().map(|&i| all[i]).collect();
+            assert_eq!(left, expected);
+        }
+        assert_eq!(texel_lists(&cut_with(2)), texel_lists(&cut));
+    }
 
     #[test]
     fn a_sample_with_more_visible_pieces_than_it_holds_compresses_seldom_and_keeps_the_longest() {

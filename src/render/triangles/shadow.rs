@@ -49,6 +49,15 @@ pub const MAX_RECEIVER_SAMPLES: usize = 256;
 /// [`crate::scene::MAX_SHADOW_MAP`]² texels' interval lists.
 pub const MAX_SHADOWED_LIGHTS: usize = 8;
 
+/// Most occluder pieces the shadow maps of one render hold together (48 bytes each: 384 MiB),
+/// shared evenly between the maps; a map with more texels than its share may hold one per
+/// texel. A cube zig-zagging 150 times over a floor in one exposure put up to 256 pieces on each
+/// texel under its path, 1 GB in a 1024² map (and a 4096² map could have asked sixteen times
+/// that); a map whose lists would hold more than its share has each texel's list cut to its
+/// longest pieces, as many as fit ([`cap_within`]), and `--explain` says so. The gallery's
+/// scenes hold at most 1.2 M (`armadillo_shadow`).
+pub const MAX_SHADOW_PIECES: usize = 1 << 23;
+
 /// Longest path, in texels, that [`ShadowMap::surely_lit`] walks (about three texels per texel of
 /// path are read; a longer path is point-sampled or traced).
 pub const MAX_SURELY_LIT_TEXELS: f64 = 1024.0;
@@ -254,6 +263,66 @@ impl Nearest {
     }
 }
 
+/// What a shadow map's texel lists hold and what making them left out.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ShadowLists {
+    /// Occluder pieces held.
+    pub pieces: usize,
+    /// The most on one texel.
+    pub peak_per_texel: usize,
+    /// Times a texel's interval list was full and was resolved to make room (as an image
+    /// sample's is: [`super::MAX_INTERVALS_PER_SAMPLE`]).
+    pub compressed: usize,
+    /// Intervals dropped from texel lists still full after that.
+    pub dropped: usize,
+    /// When the map's lists would have held more than [`MAX_SHADOW_PIECES`]: the longest pieces
+    /// each texel kept.
+    pub cap: Option<usize>,
+    /// The pieces that cap left out.
+    pub cut: usize,
+}
+
+impl ShadowLists {
+    /// Add another map's counts (each light's, each frame's); the tightest cap stands for them.
+    pub fn add(&mut self, other: &ShadowLists) {
+        self.pieces += other.pieces;
+        self.peak_per_texel = self.peak_per_texel.max(other.peak_per_texel);
+        self.compressed += other.compressed;
+        self.dropped += other.dropped;
+        self.cap = match (self.cap, other.cap) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        self.cut += other.cut;
+    }
+}
+
+/// The largest number of pieces each texel may keep so that texels holding `counts` keep at most
+/// `budget` together (at least one each: a budget below the texel count keeps one).
+#[must_use]
+pub fn cap_within(counts: impl Iterator<Item = usize>, budget: usize) -> usize {
+    let mut at_least = Vec::new();
+    for count in counts {
+        if count >= at_least.len() {
+            at_least.resize(count + 1, 0usize);
+        }
+        at_least[count] += 1;
+    }
+    // at_least[k] becomes the number of texels holding k pieces or more.
+    for k in (1..at_least.len().saturating_sub(1)).rev() {
+        at_least[k] += at_least[k + 1];
+    }
+    // Each texel keeps min(count, cap): raising the cap by one adds one piece per texel that
+    // holds more.
+    let mut kept = 0;
+    let mut cap = 0;
+    while cap + 1 < at_least.len() && kept + at_least[cap + 1] <= budget {
+        cap += 1;
+        kept += at_least[cap];
+    }
+    cap.max(1)
+}
+
 /// The occluders of every texel: per tile of the light's view, the texels' lists one after the
 /// other (`starts` has one more entry than the tile has texels, or none at all where the tile
 /// holds no occluder).
@@ -267,6 +336,8 @@ pub struct Occluders {
     pub left_empty: usize,
     /// Item × tile pairs left out so.
     pub left_out: usize,
+    /// What the texel lists hold and left out.
+    pub lists: ShadowLists,
 }
 
 /// A light's shadow map, ready for lookups.
@@ -376,6 +447,12 @@ impl ShadowMap {
     #[must_use]
     pub fn left_out(&self) -> usize {
         self.occluders.left_out
+    }
+
+    /// What the texel lists hold and left out ([`Occluders::lists`]).
+    #[must_use]
+    pub fn lists(&self) -> ShadowLists {
+        self.occluders.lists
     }
 
     /// Whether `receiver` is lit throughout its span: in every texel its bilinear lookups can
@@ -860,6 +937,7 @@ mod tests {
             tiles: vec![(starts, vec![occluder])],
             left_empty: 0,
             left_out: 0,
+            lists: ShadowLists::default(),
         })
         .summarised()
     }
@@ -912,6 +990,7 @@ mod tests {
             tiles,
             left_empty: 3,
             left_out: 3,
+            lists: ShadowLists::default(),
         })
         .summarised();
         // The eight corners of a box of texels [x0, x1] × [y0, y1] between depths 4 and 6.
@@ -1010,6 +1089,19 @@ mod tests {
             assert!((closed - sum / weight).abs() < 1e-4, "{shape:?}: {closed}");
             assert!(closed > 0.75 && closed < 1.0, "{shape:?}: {closed}");
         }
+    }
+
+    #[test]
+    fn the_cap_keeps_the_most_pieces_per_texel_that_fit_the_budget() {
+        let counts = [0, 1, 3, 5, 10];
+        // Σ min(count, cap): 1 + 3 + 3 + 3 = 10 at cap 3, 1 + 3 + 4 + 4 = 12 at cap 4.
+        assert_eq!(cap_within(counts.into_iter(), 10), 3);
+        assert_eq!(cap_within(counts.into_iter(), 11), 3);
+        assert_eq!(cap_within(counts.into_iter(), 12), 4);
+        assert_eq!(cap_within(counts.into_iter(), 19), 10);
+        // Not even one each fits: one each all the same.
+        assert_eq!(cap_within(counts.into_iter(), 2), 1);
+        assert_eq!(cap_within(std::iter::empty(), 5), 1);
     }
 
     #[test]
