@@ -2315,17 +2315,11 @@ mod tests {
     #[test]
     fn a_shadow_map_over_its_budget_keeps_each_texels_longest_pieces_whatever_the_threads() {
         use crate::scene::{Keyframe, Light, Lighting, Motion, Pose};
-        use crate::surfels::{from_mesh, Colouring, Mesh};
-        let square = |h: f64| Mesh {
-            positions: vec![
-                DVec3::new(-h, -h, 0.0),
-                DVec3::new(h, -h, 0.0),
-                DVec3::new(h, h, 0.0),
-                DVec3::new(-h, h, 0.0),
-            ],
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
-        };
-        let object = |name: &str, mesh: Mesh, keys: Vec<(f64, f64, f64)>| {
+        use crate::surfels::mesh::tests::square;
+        use crate::surfels::{from_mesh, Colouring};
+        // A square `side` wide centred at (x, 0, z) at each key (t, x, z).
+        let object = |name: &str, side: f64, keys: Vec<(f64, f64, f64)>| {
+            let mesh = square(side);
             let colour = Colouring::Rgb([1.0; 3]);
             let triangles = TriangleMesh::new(&mesh, DVec3::ZERO, colour).unwrap();
             let mut surfels = from_mesh(&mesh, 100, false).unwrap();
@@ -2335,7 +2329,7 @@ mod tests {
                 .map(|(t, x, z)| Keyframe {
                     t,
                     pose: Pose {
-                        translation: DVec3::new(x, 0.0, z),
+                        translation: DVec3::new(x - 0.5 * side, -0.5 * side, z),
                         ..Pose::IDENTITY
                     },
                 })
@@ -2370,8 +2364,8 @@ mod tests {
             .unwrap();
         let scene = Scene::new(camera)
             .with_lighting(lighting)
-            .with_object(object("floor", square(4.0), vec![(0.0, 0.0, 0.0)]))
-            .with_object(object("square", square(1.5), zigzag));
+            .with_object(object("floor", 8.0, vec![(0.0, 0.0, 0.0)]))
+            .with_object(object("square", 3.0, zigzag));
         let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
         let prepared = Prepared::new(
             &plan,

@@ -54,7 +54,7 @@ pub const MAX_SHADOWED_LIGHTS: usize = 8;
 /// texel. A cube zig-zagging 150 times over a floor in one exposure put up to 256 pieces on each
 /// texel under its path, 1 GB in a 1024² map (and a 4096² map could have asked sixteen times
 /// that); a map whose lists would hold more than its share has each texel's list cut to its
-/// longest pieces, as many as fit ([`cap_within`]), and `--explain` says so. The gallery's
+/// longest pieces, as many as fit (`cap_within`), and `--explain` says so. The gallery's
 /// scenes hold at most 1.2 M (`armadillo_shadow`).
 pub const MAX_SHADOW_PIECES: usize = 1 << 23;
 
