@@ -38,7 +38,7 @@ pub enum Lod {
     /// Full detail: every surfel is drawn.
     Off,
     /// Merge where the image cannot show the difference: cells [`ALONG_FRACTION`] of the path
-    /// long; `kernel3d` merges only sub-pixel surfels, in square cells (see [`Cells::Square`]).
+    /// long, [`ALONG_FRACTION_KERNELS`] for `kernel3d`.
     #[default]
     Auto,
     /// Merge with cells this share of the screen path long (for measuring the rule).
@@ -57,7 +57,7 @@ impl Lod {
     pub fn blurred_cells(self, kernels: bool) -> Option<Cells> {
         match self {
             Lod::Off => None,
-            Lod::Auto if kernels => Some(Cells::Square),
+            Lod::Auto if kernels => Some(Cells::AlongMotion(ALONG_FRACTION_KERNELS)),
             Lod::Auto => Some(Cells::AlongMotion(ALONG_FRACTION)),
             Lod::Along(f) => Some(Cells::AlongMotion(f)),
         }
@@ -68,9 +68,7 @@ impl Lod {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Cells {
     /// [`CELL_PX`] squares: what an instant cannot resolve (`static`, each reference frame, still
-    /// objects), and all `kernel3d` merges by default: its kernels of surfels merged along the
-    /// motion let 6.5 % of the background through the silhouette of a sliding sphere
-    /// (`tests/opaque.rs` allows 3 %).
+    /// objects).
     Square,
     /// [`CELL_PX`] across the motion and this share of each surfel's screen path along it.
     AlongMotion(f64),
@@ -82,10 +80,13 @@ pub enum Cells {
 /// +2.6 % and ꟻLIP against full detail 0.0046).
 pub const ALONG_FRACTION: f64 = 0.2;
 
-/// The share that suits `kernel3d`, whose error is ten times lower than `blur`'s, so that the same
-/// merging shows: at 0.1 its RMSE doubled on the torus knot, at 0.05 it rose by 17 %. Not on by
-/// default (see [`Cells::Square`]); `Lod::Along` asks for it.
-pub const ALONG_FRACTION_KERNELS: f64 = 0.05;
+/// The share that suits `kernel3d`, whose error is several times lower than `blur`'s, so that the
+/// same merging shows. At 8 sub-frames, RMSE against the converged reference over full detail's:
+/// 0.05 took the knot +6 % and `approaching` +18 %, but the armadillo and the bunnies of
+/// `crossing_depth`, which turn, +90 % and +82 %; 0.03 keeps them to +1 %, +5 %, 0 % (nothing
+/// merges) and +20 %, and still draws the knot 2.3× and `approaching` 3.3× faster (docs/math.md,
+/// "Level of detail").
+pub const ALONG_FRACTION_KERNELS: f64 = 0.03;
 
 /// Least cell width across the motion, and the side of a cell for an instant, px.
 pub const CELL_PX: f64 = 1.0;

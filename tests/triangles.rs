@@ -356,7 +356,10 @@ fn a_still_floor_under_a_sliding_occluder_is_lit_for_the_closed_form_time() {
     );
     // The occluder's pieces are counted, far within the budget: none left out.
     let lists = stats.shadow_lists;
-    assert!(lists.pieces > 0 && lists.cap.is_none() && lists.cut == 0, "{lists:?}");
+    assert!(
+        lists.pieces > 0 && lists.cap.is_none() && lists.cut == 0,
+        "{lists:?}"
+    );
     // Percentage-closer filtering blurs each shadow edge over a texel: 0.01 units of a 4-unit
     // slide, 0.3 % of the time.
     assert!(
