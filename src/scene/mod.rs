@@ -141,6 +141,9 @@ pub const DEFAULT_SHADOW_MAP: u32 = 1024;
 /// Largest shadow map side, texels.
 pub const MAX_SHADOW_MAP: u32 = 4096;
 
+/// Smallest shadow map side, texels: one tile.
+pub const MIN_SHADOW_MAP: u32 = 16;
+
 /// Lambertian lighting; with no lights the scene is drawn unlit (colours as given).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Lighting {
@@ -183,14 +186,15 @@ impl Lighting {
         self
     }
 
-    /// The same lighting with shadow maps of `texels` per side, 16 to [`MAX_SHADOW_MAP`]; an
+    /// The same lighting with shadow maps of `texels` per side, [`MIN_SHADOW_MAP`] to
+    /// [`MAX_SHADOW_MAP`]; an
     /// error names `shadow_map`.
     pub fn with_shadow_map(mut self, texels: u32) -> Result<Lighting> {
-        if !(16..=MAX_SHADOW_MAP).contains(&texels) {
+        if !(MIN_SHADOW_MAP..=MAX_SHADOW_MAP).contains(&texels) {
             return Err(Error::invalid(
                 "shadow_map",
                 format!(
-                    "{texels}: texels per side of a shadow map, between 16 and {MAX_SHADOW_MAP}"
+                    "{texels}: texels per side of a shadow map, between {MIN_SHADOW_MAP} and {MAX_SHADOW_MAP}"
                 ),
             ));
         }

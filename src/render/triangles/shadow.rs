@@ -53,9 +53,11 @@ pub const MAX_SHADOWED_LIGHTS: usize = 8;
 /// shared evenly between the maps; a map with more texels than its share may hold one per
 /// texel. A cube zig-zagging 150 times over a floor in one exposure put up to 256 pieces on each
 /// texel under its path, 1 GB in a 1024² map (and a 4096² map could have asked sixteen times
-/// that); a map whose lists would hold more than its share has each texel's list cut to its
-/// longest pieces, as many as fit (`cap_within`), and `--explain` says so. The gallery's
-/// scenes hold at most 1.2 M (`armadillo_shadow`).
+/// that). A map whose lists would hold more than its share is drawn again with half the texels
+/// per side, as often as it takes: its shadows keep their strength and soften. Only where even a
+/// map of [`crate::scene::MIN_SHADOW_MAP`] texels would not fit is each texel's list cut to its
+/// longest pieces, as many as fit (`cap_within`). `--explain` says which. The gallery's scenes
+/// hold at most 1.2 M (`armadillo_shadow`).
 pub const MAX_SHADOW_PIECES: usize = 1 << 23;
 
 /// Longest path, in texels, that [`ShadowMap::surely_lit`] walks (about three texels per texel of
@@ -275,8 +277,11 @@ pub struct ShadowLists {
     pub compressed: usize,
     /// Intervals dropped from texel lists still full after that.
     pub dropped: usize,
-    /// When the map's lists would have held more than [`MAX_SHADOW_PIECES`]: the longest pieces
-    /// each texel kept.
+    /// When a map's lists would have held more than its share of [`MAX_SHADOW_PIECES`] at the
+    /// resolution asked for: that side and the side it was drawn at, coarser (the smallest over
+    /// the maps).
+    pub coarsened: Option<(u32, u32)>,
+    /// When even the coarsest map would have held more: the longest pieces each texel kept.
     pub cap: Option<usize>,
     /// The pieces that cap left out.
     pub cut: usize,
@@ -289,6 +294,10 @@ impl ShadowLists {
         self.peak_per_texel = self.peak_per_texel.max(other.peak_per_texel);
         self.compressed += other.compressed;
         self.dropped += other.dropped;
+        self.coarsened = match (self.coarsened, other.coarsened) {
+            (Some(a), Some(b)) => Some(if a.1 <= b.1 { a } else { b }),
+            (a, b) => a.or(b),
+        };
         self.cap = match (self.cap, other.cap) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
