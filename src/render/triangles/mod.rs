@@ -1596,8 +1596,8 @@ impl<'a> Prepared<'a> {
     /// if the map did not fit, every texel's list is cut to its longest pieces, as many as fit
     /// ([`cap_within`]), the tiles that were only counted built again. Which tiles were held
     /// depends on the thread schedule, the result does not: a map that fits was held whole, and
-    /// one that does not is cut alike everywhere. At most about twice the budget is held while it
-    /// is cut.
+    /// one that does not is cut alike everywhere (or, not to be cut, given up once over, its tiles
+    /// left unbuilt). At most about twice the budget is held while it is cut.
     fn occluders_within(&self, budget: usize, cut: bool) -> Option<Occluders> {
         let camera = &self.camera;
         let grid = TileGrid::new(camera.width, camera.height);
@@ -1655,10 +1655,16 @@ impl<'a> Prepared<'a> {
             built
         };
         let held = AtomicUsize::new(0);
+        // A map that will not be cut is given up as soon as it is over: its tiles left are not
+        // built at all.
+        let given_up = || !cut && held.load(Ordering::Relaxed) > budget;
         let mut tiles: Vec<ShadowTile> = (0..grid.count())
             .into_par_iter()
             .with_max_len(1)
             .map(|tile| {
+                if given_up() {
+                    return ShadowTile::default();
+                }
                 let mut built = build(tile);
                 let pieces = built.pieces.len();
                 if held.fetch_add(pieces, Ordering::Relaxed) + pieces > budget {
@@ -1668,6 +1674,9 @@ impl<'a> Prepared<'a> {
                 built
             })
             .collect();
+        if given_up() {
+            return None;
+        }
         let counts = || {
             tiles
                 .iter()
@@ -1682,9 +1691,6 @@ impl<'a> Prepared<'a> {
             ..ShadowLists::default()
         };
         if lists_stats.pieces > budget {
-            if !cut {
-                return None;
-            }
             let cap = cap_within(counts(), budget);
             tiles
                 .par_iter_mut()
