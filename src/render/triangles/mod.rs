@@ -51,6 +51,12 @@ pub const MAX_INTERVALS_PER_SAMPLE: usize = 256;
 /// and over a minute at 250 zig-zags.
 pub const LIST_SLACK: usize = MAX_INTERVALS_PER_SAMPLE / 4;
 
+/// Most intervals one shadow-map texel keeps while its map is drawn (about 40 kB; a quarter of
+/// them is the slack, as [`LIST_SLACK`] is of a sample's). A texel's pieces are occluders, and a
+/// dropped one is a shadow missing for its time; what the texels keep together is bounded by
+/// [`MAX_SHADOW_PIECES`], past which the map is drawn coarser.
+pub const MAX_INTERVALS_PER_TEXEL: usize = 1024;
+
 /// Gauss–Legendre nodes and weights on [−1, 1], three points: exact for polynomials of degree 5,
 /// enough for a Lambert term turning within one visible piece.
 const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
@@ -313,6 +319,9 @@ struct Prepared<'a> {
     /// [`tct::DEPTH_TOLERANCE_PX`] in the image, [`shadow::DEPTH_TOLERANCE_TEXELS`] in a shadow
     /// map, over the focal length.
     depth_tolerance: f64,
+    /// Most intervals a sample's list keeps: [`MAX_INTERVALS_PER_SAMPLE`] in the image,
+    /// [`MAX_INTERVALS_PER_TEXEL`] in a shadow map.
+    list_cap: usize,
 }
 
 /// An image of the triangle objects and where they hide what lies behind.
@@ -363,8 +372,7 @@ fn shadow_occluders(plan: &Plan, camera: &Camera, exposure: Exposure, budget: us
         let coarser = (half >= MIN_SHADOW_MAP)
             .then(|| camera.resized(half, camera.height / 2).ok())
             .flatten();
-        let prepared = Prepared::new(plan, camera.clone(), exposure, Vec::new())
-            .with_depth_tolerance(shadow::DEPTH_TOLERANCE_TEXELS);
+        let prepared = Prepared::new(plan, camera.clone(), exposure, Vec::new()).for_shadow_map();
         match (
             prepared.occluders_within(budget, coarser.is_none()),
             coarser,
@@ -461,14 +469,18 @@ impl<'a> Prepared<'a> {
             near_clipped: false,
             occludes_surfels: (0..scene.objects.len()).any(|index| !plan.draws_triangles(index)),
             depth_tolerance,
+            list_cap: MAX_INTERVALS_PER_SAMPLE,
         };
         (prepared.items, prepared.behind_near, prepared.near_clipped) = prepared.make_items(count);
         prepared
     }
 
-    /// The same, its depth pieces within `px` pixels' (texels') width of the exact depth.
-    fn with_depth_tolerance(mut self, px: f64) -> Self {
-        self.depth_tolerance = px / self.camera.focal_px;
+    /// The same as a light's view for its shadow map: depth pieces within
+    /// [`shadow::DEPTH_TOLERANCE_TEXELS`] texels' width of the exact depth, and texel lists of up
+    /// to [`MAX_INTERVALS_PER_TEXEL`].
+    fn for_shadow_map(mut self) -> Self {
+        self.depth_tolerance = shadow::DEPTH_TOLERANCE_TEXELS / self.camera.focal_px;
+        self.list_cap = MAX_INTERVALS_PER_TEXEL;
         self
     }
 
@@ -664,7 +676,7 @@ impl<'a> Prepared<'a> {
         stats: &mut TriangleStats,
     ) {
         let samples = ((x1 - x0) * (y1 - y0)) as usize * offsets.len();
-        scratch.reset(samples);
+        scratch.reset(samples, self.list_cap);
         let grid = SampleGrid::new(bounds, offsets);
         scratch.tile.clear(self.items.len());
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
@@ -2109,6 +2121,8 @@ struct Scratch {
     nearest: Vec<Option<(f64, u32)>>,
     /// `Shutter`: the interval list per sample.
     lists: Vec<Vec<Interval>>,
+    /// Most intervals a list keeps ([`Prepared::list_cap`]).
+    list_cap: usize,
     /// `Shutter`: per sample, the depth of the nearest still triangle covering it all along
     /// (+∞ while there is none).
     covered_all_along: Vec<f64>,
@@ -2125,7 +2139,8 @@ struct Scratch {
 }
 
 impl Scratch {
-    fn reset(&mut self, samples: usize) {
+    fn reset(&mut self, samples: usize, list_cap: usize) {
+        self.list_cap = list_cap;
         self.nearest.clear();
         self.nearest.resize(samples, None);
         if self.lists.len() < samples {
@@ -2244,9 +2259,9 @@ impl Scratch {
         pieces: &impl BentDepth,
         stats: &mut TriangleStats,
     ) {
-        let room = MAX_INTERVALS_PER_SAMPLE - LIST_SLACK;
+        let room = self.list_cap - self.list_cap / 4;
         let mut crowded = false;
-        if self.lists[sample].len() >= MAX_INTERVALS_PER_SAMPLE {
+        if self.lists[sample].len() >= self.list_cap {
             stats.compressed += 1;
             self.visible.clear();
             resolve(
@@ -2358,9 +2373,9 @@ impl ShadowTile {
 mod tests {
     use super::*;
 
-    /// A square crossing a floor 20 times in one exposure under a light from above, with a shadow
-    /// map `map` texels a side.
-    fn zigzag_over_floor(map: u32) -> Scene {
+    /// A square crossing a floor `passes` times in one exposure under a light from above, with a
+    /// shadow map `map` texels a side.
+    fn zigzag_over_floor(map: u32, passes: u32) -> Scene {
         use crate::scene::{Keyframe, Light, Lighting, Motion, Pose};
         use crate::surfels::mesh::tests::square;
         use crate::surfels::{from_mesh, Colouring};
@@ -2383,9 +2398,8 @@ mod tests {
                 .collect();
             Object::triangles(name, triangles, surfels, Motion::new(keyframes).unwrap())
         };
-        // A square crossing a floor 20 times under a light from above: the texels on its way
-        // hold up to 40 pieces each, the square's and the floor's between.
-        let passes = 20;
+        // The texels on the square's way hold up to two pieces a pass, the square's and the
+        // floor's between.
         let zigzag = (0..=passes)
             .map(|i| {
                 (
@@ -2415,15 +2429,14 @@ mod tests {
             .with_object(object("square", 3.0, zigzag))
     }
 
-    /// The shadow map's camera of a plan of `scene`, with its texels' occluders drawn.
+    /// The view of `plan` from a light's `camera`, drawn as its shadow map is.
     fn prepared_light<'a>(plan: &'a Plan<'a>, camera: Camera) -> Prepared<'a> {
-        Prepared::new(plan, camera, Exposure::Shutter, Vec::new())
-            .with_depth_tolerance(shadow::DEPTH_TOLERANCE_TEXELS)
+        Prepared::new(plan, camera, Exposure::Shutter, Vec::new()).for_shadow_map()
     }
 
     #[test]
     fn a_shadow_map_over_its_budget_keeps_each_texels_longest_pieces_whatever_the_threads() {
-        let scene = zigzag_over_floor(16);
+        let scene = zigzag_over_floor(16, 20);
         let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
         let prepared = prepared_light(&plan, plan.shadow_cameras[0].clone());
         let texel_lists = |o: &Occluders| -> Vec<Vec<[f64; 2]>> {
@@ -2494,9 +2507,21 @@ mod tests {
     }
 
     #[test]
+    fn a_shadow_map_texel_keeps_more_occluders_than_an_image_sample() {
+        // 200 passes: up to 400 pieces on a texel, past an image sample's 256 and within a
+        // texel's 1,024, so no texel list is compressed and none dropped.
+        let scene = zigzag_over_floor(16, 200);
+        let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
+        let prepared = prepared_light(&plan, plan.shadow_cameras[0].clone());
+        let lists = prepared.occluders_within(usize::MAX, false).unwrap().lists;
+        assert!(lists.peak_per_texel > MAX_INTERVALS_PER_SAMPLE, "{lists:?}");
+        assert_eq!((lists.compressed, lists.dropped), (0, 0), "{lists:?}");
+    }
+
+    #[test]
     fn a_shadow_map_over_its_budget_is_drawn_coarser_before_its_lists_are_cut() {
         // The same zig-zag in a 64² map, with a budget that its 32² map fits.
-        let scene = zigzag_over_floor(64);
+        let scene = zigzag_over_floor(64, 20);
         let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
         let camera = &plan.shadow_cameras[0];
         let pieces = |side: u32| {
@@ -2523,7 +2548,7 @@ mod tests {
         // 2,000 pieces one after another in time, alternately of two items (nothing joins), the
         // odd ones five times longer: every piece is visible, far more than a list holds.
         let mut scratch = Scratch::default();
-        scratch.reset(1);
+        scratch.reset(1, MAX_INTERVALS_PER_SAMPLE);
         let mut stats = TriangleStats::default();
         let mut t = 0.0;
         for k in 0..2000u32 {
