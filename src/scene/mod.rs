@@ -187,8 +187,7 @@ impl Lighting {
     }
 
     /// The same lighting with shadow maps of `texels` per side, [`MIN_SHADOW_MAP`] to
-    /// [`MAX_SHADOW_MAP`]; an
-    /// error names `shadow_map`.
+    /// [`MAX_SHADOW_MAP`]; an error names `shadow_map`.
     pub fn with_shadow_map(mut self, texels: u32) -> Result<Lighting> {
         if !(MIN_SHADOW_MAP..=MAX_SHADOW_MAP).contains(&texels) {
             return Err(Error::invalid(

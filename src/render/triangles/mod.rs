@@ -49,10 +49,15 @@ pub const MAX_INTERVALS_PER_SAMPLE: usize = 256;
 /// the cap (a cube zig-zagging over a floor 150 times in one exposure) otherwise resolved its
 /// whole list again for every interval after the first 256: `analytic` took 21 s at 64 × 48,
 /// and over a minute at 250 zig-zags.
-pub const LIST_SLACK: usize = MAX_INTERVALS_PER_SAMPLE / 4;
+pub const LIST_SLACK: usize = list_slack(MAX_INTERVALS_PER_SAMPLE);
 
-/// Most intervals one shadow-map texel keeps while its map is drawn (about 40 kB; a quarter of
-/// them is the slack, as [`LIST_SLACK`] is of a sample's). A texel's pieces are occluders, and a
+/// The room a full list of at most `cap` intervals keeps after compression: a quarter of it.
+const fn list_slack(cap: usize) -> usize {
+    cap / 4
+}
+
+/// Most intervals one shadow-map texel keeps while its map is drawn (about 40 kB; its slack is a
+/// quarter of it, as [`LIST_SLACK`] is of a sample's). A texel's pieces are occluders, and a
 /// dropped one is a shadow missing for its time; what the texels keep together is bounded by
 /// [`MAX_SHADOW_PIECES`], past which the map is drawn coarser.
 pub const MAX_INTERVALS_PER_TEXEL: usize = 1024;
@@ -362,8 +367,9 @@ pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
 /// [`MIN_SHADOW_MAP`]; only a map that does not fit even there has its texel lists cut
 /// ([`Prepared::occluders_within`]). A coarser map keeps every occluder's time, so its shadows
 /// keep their strength and soften at their edges, where cut lists would lose the shortest
-/// shadows (a cube zig-zagging 150 times over a floor: RMSE against the converged reference
-/// 0.0364 cut to 80 pieces a texel, 0.0186 with half the texels per side, as uncut).
+/// shadows (a cube zig-zagging 150 times over a floor, texel lists then of 256: RMSE against the
+/// converged reference 0.0364 cut to 80 pieces a texel, 0.0186 with half the texels per side,
+/// as uncut).
 fn shadow_occluders(plan: &Plan, camera: &Camera, exposure: Exposure, budget: usize) -> Occluders {
     let mut camera = camera.clone();
     let asked = camera.width;
@@ -2259,7 +2265,7 @@ impl Scratch {
         pieces: &impl BentDepth,
         stats: &mut TriangleStats,
     ) {
-        let room = self.list_cap - self.list_cap / 4;
+        let room = self.list_cap - list_slack(self.list_cap);
         let mut crowded = false;
         if self.lists[sample].len() >= self.list_cap {
             stats.compressed += 1;

@@ -51,9 +51,9 @@ pub const MAX_SHADOWED_LIGHTS: usize = 8;
 
 /// Most occluder pieces the shadow maps of one render hold together (48 bytes each: 384 MiB),
 /// shared evenly between the maps; a map with more texels than its share may hold one per
-/// texel. A cube zig-zagging 150 times over a floor in one exposure put up to 256 pieces on each
-/// texel under its path, 1 GB in a 1024² map (and a 4096² map could have asked sixteen times
-/// that). A map whose lists would hold more than its share is drawn again with half the texels
+/// texel. A cube zig-zagging 150 times over a floor in one exposure put 256 pieces (as many as a
+/// texel then kept) on each texel under its path, 1 GB in a 1024² map (and a 4096² map could
+/// have asked sixteen times that). A map whose lists would hold more than its share is drawn again with half the texels
 /// per side, as often as it takes: its shadows keep their strength and soften. Only where even a
 /// map of [`crate::scene::MIN_SHADOW_MAP`] texels would not fit is each texel's list cut to its
 /// longest pieces, as many as fit (`cap_within`). `--explain` says which. The gallery's scenes
@@ -272,8 +272,8 @@ pub struct ShadowLists {
     pub pieces: usize,
     /// The most on one texel.
     pub peak_per_texel: usize,
-    /// Times a texel's interval list was full and was resolved to make room (as an image
-    /// sample's is: [`super::MAX_INTERVALS_PER_SAMPLE`]).
+    /// Times a texel's interval list was full ([`super::MAX_INTERVALS_PER_TEXEL`]) and was
+    /// resolved to make room, as an image sample's is.
     pub compressed: usize,
     /// Intervals dropped from texel lists still full after that.
     pub dropped: usize,
