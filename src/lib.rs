@@ -57,6 +57,7 @@ pub mod gallery;
 pub mod io;
 pub mod lod;
 pub mod math;
+mod memory;
 #[cfg(feature = "cli")]
 pub mod metrics;
 pub mod plan;

@@ -944,7 +944,10 @@ fn render_tile<'s, const B: usize>(
             .map(|&i| u64::from(order_key(footprints[i as usize].depth)) << 32 | u64::from(i)),
     );
     order.sort_unstable();
-    for &key in order.iter() {
+    for (k, &key) in order.iter().enumerate() {
+        if let Some(&ahead) = order.get(k + 4) {
+            crate::memory::prefetch(&footprints[ahead as u32 as usize]);
+        }
         let f = &footprints[key as u32 as usize];
         match f.streak {
             Some(streak) => {
