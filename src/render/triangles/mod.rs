@@ -72,7 +72,9 @@ const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
 
 /// Cut `span` where a surface turns towards or away from a light: N·L is quadratic in time
 /// (Palmér eq. 2.5) and taken through its values `[f0, fm, f1]` at the span's start, middle and
-/// end; its roots inside the span are appended to `cuts`. Returns whether the surface faces away
+/// end, N the normal lerped between the span's ends and not made unit (a positive scale keeps
+/// the sign, and only then is N·L a polynomial); its roots inside the span are appended to
+/// `cuts`. Returns whether the surface faces away
 /// all along.
 fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>) -> bool {
     // The quadratic through the three values, in u = (t − t0)/(t1 − t0).
@@ -1203,16 +1205,18 @@ impl<'a> Prepared<'a> {
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
         let ends = span.map(|t| self.surface(item, &triangle, d, fraction(t)));
-        let surface_at = |t: f64| {
+        // The normal not yet made unit: what the sign of N·L needs, and exactly quadratic in time.
+        let between = |t: f64| {
             let u = if span[1] > span[0] {
                 (t - span[0]) / (span[1] - span[0])
             } else {
                 0.0
             };
-            (
-                ends[0].0.lerp(ends[1].0, u).normalize_or_zero(),
-                ends[0].1.lerp(ends[1].1, u),
-            )
+            (ends[0].0.lerp(ends[1].0, u), ends[0].1.lerp(ends[1].1, u))
+        };
+        let surface_at = |t: f64| {
+            let (normal, p) = between(t);
+            (normal.normalize_or_zero(), p)
         };
         cuts.clear();
         cuts.extend(span);
@@ -1234,7 +1238,7 @@ impl<'a> Prepared<'a> {
                 .zip(&mut surely_lit);
             for source in &self.sources {
                 let facing = |t: f64| {
-                    let (normal, p) = surface_at(t);
+                    let (normal, p) = between(t);
                     source.facing(normal, p)
                 };
                 let middle = 0.5 * (span[0] + span[1]);
@@ -2650,5 +2654,31 @@ mod tests {
         let point = ScreenHull::new(&[DVec2::new(2.0, 3.0); 6]);
         assert_eq!(point.x_range(2.5, 3.5), Some([2.0, 2.0]));
         assert_eq!(point.x_range(3.5, 4.0), None);
+    }
+
+    #[test]
+    fn a_normal_turning_edge_on_is_cut_where_its_unnormalized_facing_crosses_zero() {
+        // A piece's normal lerps from n0 to n1 over [0.2, 0.6]; under a directional light N·L
+        // changes sign where the lerp's own dot product does: at u = f0/(f0 − f1), its values
+        // linear in u. Taken through the unit normals instead, the fit misses that time.
+        let (n0, n1) = (DVec3::X, DVec3::new(-0.3, 0.0, 1.0).normalize());
+        let light = DVec3::new(1.0, 0.0, 0.2).normalize();
+        let span = [0.2, 0.6];
+        let exact = {
+            let (f0, f1) = (n0.dot(light), n1.dot(light));
+            span[0] + f0 / (f0 - f1) * (span[1] - span[0])
+        };
+        let root = |unit: bool| {
+            let values = [0.0, 0.5, 1.0].map(|u| {
+                let n = n0.lerp(n1, u);
+                if unit { n.normalize() } else { n }.dot(light)
+            });
+            let mut cuts = Vec::new();
+            assert!(!cut_where_turning(values, span, &mut cuts));
+            assert_eq!(cuts.len(), 1, "{cuts:?}");
+            cuts[0]
+        };
+        assert!((root(false) - exact).abs() < 1e-12);
+        assert!((root(true) - exact).abs() > 1e-3);
     }
 }
