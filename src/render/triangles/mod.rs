@@ -295,8 +295,10 @@ struct Item {
     triangle: u32,
     /// Pixel bounds [x0, y0, x1, y1).
     bounds: [u32; 4],
-    /// Its corners share one shading normal and one colour (a flat face in one colour): where
-    /// a ray meets it, no barycentric weights are needed.
+    /// Its corners share one colour: its albedo needs no barycentric weights.
+    one_colour: bool,
+    /// Its corners also share one shading normal (a flat face in one colour): where a ray meets
+    /// it, no barycentric weights are needed.
     plain: bool,
 }
 
@@ -545,16 +547,16 @@ impl<'a> Prepared<'a> {
         for (o, (_, mesh, segments)) in self.objects.iter().enumerate() {
             for s in 0..segments.len() {
                 for t in 0..mesh.triangles.len() {
+                    let [n0, n1, n2] = mesh.normals[t];
+                    let [c0, c1, c2] = mesh.triangles[t].map(|v| mesh.colours[v as usize]);
+                    let one_colour = c0 == c1 && c1 == c2;
                     let mut item = Item {
                         object: o as u32,
                         segment: s as u32,
                         triangle: t as u32,
                         bounds: [0; 4],
-                        plain: {
-                            let [n0, n1, n2] = mesh.normals[t];
-                            let [c0, c1, c2] = mesh.triangles[t].map(|v| mesh.colours[v as usize]);
-                            n0 == n1 && n1 == n2 && c0 == c1 && c1 == c2
-                        },
+                        one_colour,
+                        plain: one_colour && n0 == n1 && n1 == n2,
                     };
                     let triangle = self.corners(&item);
                     let Some(window) = triangle.in_front(camera.near) else {
@@ -1561,14 +1563,20 @@ impl<'a> Prepared<'a> {
     /// The corner colours interpolated perspective-correctly where the ray `d` meets `item` at
     /// segment fraction `s`.
     fn albedo(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
-        self.albedo_with(item, self.hit(item, triangle, d, s).weights)
+        // One colour needs no hit (most meshes are one-coloured).
+        let weights = if item.one_colour {
+            [1.0, 0.0, 0.0]
+        } else {
+            self.hit(item, triangle, d, s).weights
+        };
+        self.albedo_with(item, weights)
     }
 
     /// The corner colours of `item` at barycentric `weights`.
     fn albedo_with(&self, item: &Item, weights: [f64; 3]) -> [f64; 3] {
         let (_, mesh, _) = &self.objects[item.object as usize];
         let corners = mesh.triangles[item.triangle as usize];
-        if item.plain {
+        if item.one_colour {
             return mesh.colours[corners[0] as usize].map(f64::from);
         }
         [0, 1, 2].map(|c| {
