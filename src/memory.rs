@@ -1,8 +1,8 @@
 //! Hints to the memory system for loops that wait on loads they could have asked for earlier.
 
 /// Ask the processor to bring `value` into its caches ahead of use; a no-op but on x86-64. For a
-/// loop over items in an order the hardware cannot guess (a tile's footprints by depth, queued
-/// edges by cost), asked a few items ahead.
+/// loop over items in an order the hardware cannot guess (a tile's footprints by depth), asked a
+/// few items ahead.
 #[inline(always)]
 pub(crate) fn prefetch<T>(value: &T) {
     #[cfg(target_arch = "x86_64")]

@@ -74,8 +74,7 @@ const GAUSS_LEGENDRE_3: [(f64, f64); 3] = [
 /// (Palmér eq. 2.5) and taken through its values `[f0, fm, f1]` at the span's start, middle and
 /// end, N the normal lerped between the span's ends and not made unit (a positive scale keeps
 /// the sign, and only then is N·L a polynomial); its roots inside the span are appended to
-/// `cuts`. Returns whether the surface faces away
-/// all along.
+/// `cuts`. Returns whether the surface faces away all along.
 fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>) -> bool {
     // The quadratic through the three values, in u = (t − t0)/(t1 − t0).
     let (a, b, c) = (
@@ -1207,7 +1206,8 @@ impl<'a> Prepared<'a> {
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
         let ends = span.map(|t| self.surface(item, &triangle, d, fraction(t)));
-        // The normal not yet made unit: what the sign of N·L needs, and exactly quadratic in time.
+        // The normal and point between the ends, the normal not made unit: N·L then has the
+        // unit normal's sign and is exactly quadratic in time (`cut_where_turning`).
         let between = |t: f64| {
             let u = if span[1] > span[0] {
                 (t - span[0]) / (span[1] - span[0])
