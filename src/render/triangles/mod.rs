@@ -37,30 +37,44 @@ use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth, RayHit};
 /// render may hold.
 pub const MAX_TRIANGLE_ITEMS: usize = 1 << 24;
 
-/// Most intervals one spatial sample keeps (about 10 kB): past it the list is resolved to its
-/// visible pieces (Gribel's compression); when that leaves less than [`LIST_SLACK`] free, each
-/// triangle's consecutive pieces are joined into one line; and only then are the shortest
-/// pieces dropped, down to that slack (all counted). The armadillo spinning over its floor
-/// peaks at 190 at 512² (64 dropped front pieces and showed the background through the body).
-pub const MAX_INTERVALS_PER_SAMPLE: usize = 256;
+/// Most intervals one sample's list keeps, an image sample's or a shadow-map texel's (about
+/// 40 kB): past it the list is resolved to its visible pieces (Gribel's compression); when that
+/// leaves less than [`LIST_SLACK`] free, each triangle's consecutive pieces are joined into one
+/// line; and only then are the shortest pieces dropped, down to that slack (all counted). A dense
+/// mesh moving fast fills many: the armadillo's 100,000 triangles sliding 90 px at 320 × 240 peak
+/// at 554 on one sample, and at a cap of 256 its samples dropped 902,734 pieces, RMSE against the
+/// reference 2.7·10⁻³ (1.2·10⁻⁴ with none dropped). In a shadow map a dropped piece is a shadow
+/// missing for its time; what the texels keep together is bounded by [`MAX_SHADOW_PIECES`].
+pub const MAX_INTERVALS_PER_SAMPLE: usize = 1024;
+
+/// Most intervals a tile's lists keep together (40 MiB, per worker thread): a tile with more
+/// samples per pixel than four gives each sample's list less than [`MAX_INTERVALS_PER_SAMPLE`],
+/// down to [`MIN_INTERVALS_PER_SAMPLE`] ([`list_cap`]).
+pub const MAX_INTERVALS_PER_TILE: usize = 1 << 20;
+
+/// Fewest intervals a sample's list keeps, however many samples its pixel has (at 16 per pixel
+/// and more; a tile's lists then take up to 40 MiB at 16 and 160 MiB at 64).
+pub const MIN_INTERVALS_PER_SAMPLE: usize = 256;
+
+/// The intervals each sample's list keeps where pixels (or texels) have `samples_per_pixel`.
+#[must_use]
+pub fn list_cap(samples_per_pixel: usize) -> usize {
+    let tile_samples = (TILE_PX * TILE_PX) as usize * samples_per_pixel.max(1);
+    (MAX_INTERVALS_PER_TILE / tile_samples)
+        .clamp(MIN_INTERVALS_PER_SAMPLE, MAX_INTERVALS_PER_SAMPLE)
+}
 
 /// Room a full list's compression leaves, at least, for the intervals that follow, so that a
 /// sample compresses at most once per this many of them. A sample with more visible pieces than
-/// the cap (a cube zig-zagging over a floor 150 times in one exposure) otherwise resolved its
-/// whole list again for every interval after the first 256: `analytic` took 21 s at 64 × 48,
-/// and over a minute at 250 zig-zags.
+/// the cap (a cube zig-zagging over a floor 150 times in one exposure, at a cap of 256) otherwise
+/// resolved its whole list again for every interval after the first 256: `analytic` took 21 s at
+/// 64 × 48, and over a minute at 250 zig-zags.
 pub const LIST_SLACK: usize = list_slack(MAX_INTERVALS_PER_SAMPLE);
 
 /// The room a full list of at most `cap` intervals keeps after compression: a quarter of it.
 const fn list_slack(cap: usize) -> usize {
     cap / 4
 }
-
-/// Most intervals one shadow-map texel keeps while its map is drawn (about 40 kB; its slack is a
-/// quarter of it, as [`LIST_SLACK`] is of a sample's). A texel's pieces are occluders, and a
-/// dropped one is a shadow missing for its time; what the texels keep together is bounded by
-/// [`MAX_SHADOW_PIECES`], past which the map is drawn coarser.
-pub const MAX_INTERVALS_PER_TEXEL: usize = 1024;
 
 /// Gauss–Legendre nodes and weights on [−1, 1], three points: exact for polynomials of degree 5,
 /// enough for a Lambert term turning within one visible piece.
@@ -211,8 +225,8 @@ impl TriangleStats {
         }
         if self.intervals > 0 {
             out.push_str(&format!(
-                "  analytic visibility: {} intervals, at most {} on one sample (cap {MAX_INTERVALS_PER_SAMPLE}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped; {} item × sample pairs left out unsolved, wholly behind a still triangle covering the sample all along\n",
-                self.intervals, self.peak_per_sample, self.compressed, self.joined, self.dropped, self.hidden_behind_still
+                "  analytic visibility: {} intervals, at most {} on one sample (cap {}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped; {} item × sample pairs left out unsolved, wholly behind a still triangle covering the sample all along\n",
+                self.intervals, self.peak_per_sample, list_cap(self.spatial_samples as usize), self.compressed, self.joined, self.dropped, self.hidden_behind_still
             ));
             out.push_str(&format!(
                 "  shading: {} visible pieces in {} runs of one triangle ({} runs of several sub-segments shaded as one), {} pieces point-sampled in shadow-map time (dynamic receivers that may be shadowed)\n",
@@ -327,9 +341,6 @@ struct Prepared<'a> {
     /// [`tct::DEPTH_TOLERANCE_PX`] in the image, [`shadow::DEPTH_TOLERANCE_TEXELS`] in a shadow
     /// map, over the focal length.
     depth_tolerance: f64,
-    /// Most intervals a sample's list keeps: [`MAX_INTERVALS_PER_SAMPLE`] in the image,
-    /// [`MAX_INTERVALS_PER_TEXEL`] in a shadow map.
-    list_cap: usize,
 }
 
 /// An image of the triangle objects and where they hide what lies behind.
@@ -478,18 +489,15 @@ impl<'a> Prepared<'a> {
             near_clipped: false,
             occludes_surfels: (0..scene.objects.len()).any(|index| !plan.draws_triangles(index)),
             depth_tolerance,
-            list_cap: MAX_INTERVALS_PER_SAMPLE,
         };
         (prepared.items, prepared.behind_near, prepared.near_clipped) = prepared.make_items(count);
         prepared
     }
 
     /// The same as a light's view for its shadow map: depth pieces within
-    /// [`shadow::DEPTH_TOLERANCE_TEXELS`] texels' width of the exact depth, and texel lists of up
-    /// to [`MAX_INTERVALS_PER_TEXEL`].
+    /// [`shadow::DEPTH_TOLERANCE_TEXELS`] texels' width of the exact depth.
     fn for_shadow_map(mut self) -> Self {
         self.depth_tolerance = shadow::DEPTH_TOLERANCE_TEXELS / self.camera.focal_px;
-        self.list_cap = MAX_INTERVALS_PER_TEXEL;
         self
     }
 
@@ -685,7 +693,7 @@ impl<'a> Prepared<'a> {
         stats: &mut TriangleStats,
     ) {
         let samples = ((x1 - x0) * (y1 - y0)) as usize * offsets.len();
-        scratch.reset(samples, self.list_cap);
+        scratch.reset(samples, list_cap(offsets.len()));
         let grid = SampleGrid::new(bounds, offsets);
         scratch.tile.clear(self.items.len());
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
@@ -2525,15 +2533,36 @@ mod tests {
     }
 
     #[test]
-    fn a_shadow_map_texel_keeps_more_occluders_than_an_image_sample() {
-        // 200 passes: up to 400 pieces on a texel, past an image sample's 256 and within a
-        // texel's 1,024, so no texel list is compressed and none dropped.
+    fn lists_keep_the_full_cap_up_to_four_samples_a_pixel_and_a_tiles_worth_beyond() {
+        assert_eq!(list_cap(1), MAX_INTERVALS_PER_SAMPLE);
+        assert_eq!(list_cap(4), MAX_INTERVALS_PER_SAMPLE);
+        assert_eq!(list_cap(64), MIN_INTERVALS_PER_SAMPLE);
+        for samples in 1..=64 {
+            let tile = (TILE_PX * TILE_PX) as usize * samples * list_cap(samples);
+            assert!(
+                tile <= MAX_INTERVALS_PER_TILE || list_cap(samples) == MIN_INTERVALS_PER_SAMPLE,
+                "{samples} samples a pixel"
+            );
+        }
+        assert!((list_cap(9)..MAX_INTERVALS_PER_SAMPLE).contains(&list_cap(5)));
+    }
+
+    #[test]
+    fn a_list_holds_hundreds_of_pieces_before_it_compresses() {
+        // 200 passes: up to 400 pieces on a texel and on an image sample under the path, past the
+        // 256 a list held before and within 1,024, so no list is compressed and none dropped.
         let scene = zigzag_over_floor(16, 200);
         let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
         let prepared = prepared_light(&plan, plan.shadow_cameras[0].clone());
         let lists = prepared.occluders_within(usize::MAX, false).unwrap().lists;
-        assert!(lists.peak_per_texel > MAX_INTERVALS_PER_SAMPLE, "{lists:?}");
+        assert!(lists.peak_per_texel > MIN_INTERVALS_PER_SAMPLE, "{lists:?}");
         assert_eq!((lists.compressed, lists.dropped), (0, 0), "{lists:?}");
+        let image = draw(&plan, Exposure::Shutter).stats;
+        assert!(
+            image.peak_per_sample > MIN_INTERVALS_PER_SAMPLE,
+            "{image:?}"
+        );
+        assert_eq!((image.compressed, image.dropped), (0, 0), "{image:?}");
     }
 
     #[test]

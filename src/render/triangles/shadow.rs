@@ -272,7 +272,7 @@ pub struct ShadowLists {
     pub pieces: usize,
     /// The most on one texel.
     pub peak_per_texel: usize,
-    /// Times a texel's interval list was full ([`super::MAX_INTERVALS_PER_TEXEL`]) and was
+    /// Times a texel's interval list was full ([`super::MAX_INTERVALS_PER_SAMPLE`]) and was
     /// resolved to make room, as an image sample's is.
     pub compressed: usize,
     /// Intervals dropped from texel lists still full after that.
