@@ -1571,13 +1571,11 @@ impl<'a> Prepared<'a> {
     /// The corner colours interpolated perspective-correctly where the ray `d` meets `item` at
     /// segment fraction `s`.
     fn albedo(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64) -> [f64; 3] {
-        // One colour needs no hit (most meshes are one-coloured).
-        let weights = if item.one_colour {
-            [1.0, 0.0, 0.0]
-        } else {
-            self.hit(item, triangle, d, s).weights
-        };
-        self.albedo_with(item, weights)
+        // One colour needs no hit (most meshes are one-coloured): any weights give it.
+        if item.one_colour {
+            return self.albedo_with(item, [1.0, 0.0, 0.0]);
+        }
+        self.albedo_with(item, self.hit(item, triangle, d, s).weights)
     }
 
     /// The corner colours of `item` at barycentric `weights`.
@@ -2147,7 +2145,7 @@ struct Scratch {
     nearest: Vec<Option<(f64, u32)>>,
     /// `Shutter`: the interval list per sample.
     lists: Vec<Vec<Interval>>,
-    /// Most intervals a list keeps ([`Prepared::list_cap`]).
+    /// Most intervals a list keeps ([`list_cap`] of its tile's samples per pixel).
     list_cap: usize,
     /// `Shutter`: per sample, the depth of the nearest still triangle covering it all along
     /// (+∞ while there is none).
