@@ -21,3 +21,17 @@ impl Framebuffer {
         }
     }
 }
+
+/// The root-mean-square difference of two images' linear channels, pixel by pixel (over the
+/// shorter of the two; `streak::metrics::compare` checks sizes and stands in for values that are
+/// not finite first).
+#[must_use]
+pub fn root_mean_square_difference(test: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
+    let sum_of_squares: f64 = test
+        .iter()
+        .zip(reference)
+        .flat_map(|(t, r)| t.iter().zip(r))
+        .map(|(&t, &r)| (f64::from(t) - f64::from(r)).powi(2))
+        .sum();
+    (sum_of_squares / (3 * test.len()) as f64).sqrt()
+}

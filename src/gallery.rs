@@ -15,7 +15,7 @@ use crate::framebuffer::Framebuffer;
 use crate::io::image::write_png;
 use crate::lod::Lod;
 use crate::metrics::{compare, ImageError};
-use crate::plan::{ObjectMotion, Plan};
+use crate::plan::Plan;
 use crate::render::{Method, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX};
 use crate::scene::Scene;
 use crate::style::Style;
@@ -223,14 +223,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
             description: leading_comment(path),
             surfels: scene.surfel_count(),
             size: (scene.camera.width, scene.camera.height),
-            path_px: plan
-                .objects
-                .iter()
-                .filter_map(|o| match o.motion {
-                    ObjectMotion::Moving { path_px, .. } => Some(path_px),
-                    ObjectMotion::Still => None,
-                })
-                .fold(0.0, f64::max),
+            path_px: plan.longest_path_px(),
             own_style: own.map(|s| s.name()),
             shots,
         });

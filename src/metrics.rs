@@ -2,7 +2,7 @@
 //! linear→sRGB encoding that PNG output and the metrics share.
 
 use crate::error::{Error, Result};
-use crate::framebuffer::Framebuffer;
+use crate::framebuffer::{root_mean_square_difference, Framebuffer};
 use crate::io::image::linear_to_srgb8;
 use rayon::prelude::*;
 
@@ -180,16 +180,6 @@ fn valid_channel_pair(test: f32, reference: f32) -> (f32, f32) {
         (true, false) => (test, farthest_in_range(test)),
         (false, false) => (1.0, 0.0),
     }
-}
-
-fn root_mean_square_difference(test: &[[f32; 3]], reference: &[[f32; 3]]) -> f64 {
-    let sum_of_squares: f64 = test
-        .iter()
-        .zip(reference)
-        .flat_map(|(t, r)| t.iter().zip(r))
-        .map(|(&t, &r)| (f64::from(t) - f64::from(r)).powi(2))
-        .sum();
-    (sum_of_squares / (3 * test.len()) as f64).sqrt()
 }
 
 /// Tightly packed RGB8, as ꟻLIP takes it.

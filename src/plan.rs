@@ -421,6 +421,18 @@ impl<'a> Plan<'a> {
         self.objects.iter().any(|o| o.motion != ObjectMotion::Still)
     }
 
+    /// The longest screen path of a moving object's probed points, px (0 when nothing moves).
+    #[must_use]
+    pub fn longest_path_px(&self) -> f64 {
+        self.objects
+            .iter()
+            .filter_map(|o| match o.motion {
+                ObjectMotion::Moving { path_px, .. } => Some(path_px),
+                ObjectMotion::Still => None,
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// Human-readable account of the plan and, when given, of what rendering culled.
     #[must_use]
     pub fn explain(&self, culled: Option<&Culled>) -> String {

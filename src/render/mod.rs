@@ -30,6 +30,7 @@ pub use crate::raster::{
     TRUNCATION_GAIN,
 };
 pub use abuffer::MAX_FRAGMENTS_PER_PIXEL;
+pub use blur::{time_bins_for, BlurStats, SHORT_PATH_PX};
 pub(crate) use hint::trail_window;
 pub use hint::HintStats;
 pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS};
@@ -251,9 +252,11 @@ pub struct Stats {
 /// What one method did beyond the shared counts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum MethodStats {
-    /// Nothing beyond them (`static` and `blur`).
+    /// Nothing beyond them (`static`).
     #[default]
     Shared,
+    /// `blur`, and `analytic` for a scene's surfel objects.
+    Blur(BlurStats),
     /// `reference`.
     Reference(ReferenceStats),
     /// `hint`.
@@ -269,6 +272,7 @@ impl MethodStats {
     pub fn explain(&self) -> String {
         match self {
             MethodStats::Shared => String::new(),
+            MethodStats::Blur(s) => s.explain(),
             MethodStats::Reference(s) => s.explain(),
             MethodStats::Hint(s) => s.explain(),
             MethodStats::Kernel3d(s) => s.explain(),
