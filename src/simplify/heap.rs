@@ -135,9 +135,9 @@ impl Heap {
             .flat_map(|bin| bin.iter().rev().copied())
     }
 
-    /// The bin one quarter of an octave of cost past `bin`.
-    pub fn quarter_octave_past(bin: usize) -> usize {
-        bin + (1 << (23 - BIN_SHIFT - 2))
+    /// The bin one octave of cost (twice the cost) past `bin`.
+    pub fn octave_past(bin: usize) -> usize {
+        bin + (1 << (23 - BIN_SHIFT))
     }
 }
 
