@@ -4,10 +4,12 @@
 //! block can be collapsed without looking outside it: each block runs its own collapser, and the
 //! vertices on faces that cross blocks (the seams) stay where they are.
 //!
-//! The blocks advance together in rounds, each collapsing what costs less than twice the cheapest
-//! cost any block still has queued, so the mesh as a whole is collapsed cheapest first to within
-//! that octave (the single queue orders to within 0.4 %; rounds a quarter octave wide were three
-//! times as many and took a fifth more time, for the same mean distance). They
+//! The blocks advance together in rounds, each collapsing what costs less than four times the
+//! cheapest cost any block still has queued, so the mesh as a whole is collapsed cheapest first
+//! to within those two octaves (the single queue orders to within 0.4 %): flat parts go before
+//! detailed ones whatever block they lie in. Narrower rounds are more of them for the same result
+//! (a quarter octave: 101 rounds instead of 17 on the 1.6 M-face armadillo, a quarter more time,
+//! the same mean distance). They
 //! stop short of the face target by twice the seams' share of the reduction; the single collapser
 //! that finishes the job (`super::simplify`) then takes the seams down with the rest.
 //! The blocks depend on the vertex count alone, never on the thread count, so the result does
@@ -146,7 +148,7 @@ pub(super) fn collapse_in_blocks(
             break;
         }
         last_round = Some((live, cheapest));
-        let below = Heap::octave_past(cheapest);
+        let below = Heap::two_octaves_past(cheapest);
         collapsers.par_iter_mut().for_each(|(c, _)| {
             let share = (allowed as u128 * c.live_faces as u128 / in_blocks as u128) as usize;
             c.run(c.live_faces.saturating_sub(share), below, &mut |_| {});

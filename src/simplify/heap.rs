@@ -135,9 +135,9 @@ impl Heap {
             .flat_map(|bin| bin.iter().rev().copied())
     }
 
-    /// The bin one octave of cost (twice the cost) past `bin`.
-    pub fn octave_past(bin: usize) -> usize {
-        bin + (1 << (23 - BIN_SHIFT))
+    /// The bin two octaves of cost (four times the cost) past `bin`.
+    pub fn two_octaves_past(bin: usize) -> usize {
+        bin + (1 << (24 - BIN_SHIFT))
     }
 }
 
