@@ -171,40 +171,20 @@ mod tests {
     fn seam_passing(path_px: f64) -> Scene {
         // 64 × 32 px at fov 3° from 50 units: 12.22 px per unit at the far quad.
         let shift = path_px / 12.22;
+        let quad = |name: &str, colour: &str, x: f64, z: f64| {
+            format!(
+                "[[object]]\nname = \"{name}\"\nshape = {{ type = \"quad\", size = [4.0, 4.0] }}\n\
+                 spacing = 0.05\ncolour = {colour}\n\
+                 [[object.keyframe]]\nt = 0\ntranslate = [{x}, 0, {z}]\n\
+                 [[object.keyframe]]\nt = 1\ntranslate = [{}, 0, {z}]\n",
+                x - shift
+            )
+        };
         let text = format!(
-            r#"
-background = [0, 0, 0]
-[camera]
-eye = [0, 0, 50]
-target = [0, 0, 0]
-fov_y = 3
-width = 64
-height = 32
-[[object]]
-name = "near"
-shape = {{ type = "quad", size = [4.0, 4.0] }}
-spacing = 0.05
-colour = [1, 0.2, 0.1]
-[[object.keyframe]]
-t = 0
-translate = [-2.0, 0, 0.5]
-[[object.keyframe]]
-t = 1
-translate = [{near}, 0, 0.5]
-[[object]]
-name = "far"
-shape = {{ type = "quad", size = [4.0, 4.0] }}
-spacing = 0.05
-colour = [0.1, 0.3, 1]
-[[object.keyframe]]
-t = 0
-translate = [2.0, 0, 0]
-[[object.keyframe]]
-t = 1
-translate = [{far}, 0, 0]
-"#,
-            near = -2.0 - shift,
-            far = 2.0 - shift,
+            "background = [0, 0, 0]\n\
+             [camera]\neye = [0, 0, 50]\ntarget = [0, 0, 0]\nfov_y = 3\nwidth = 64\nheight = 32\n{}{}",
+            quad("near", "[1, 0.2, 0.1]", -2.0, 0.5),
+            quad("far", "[0.1, 0.3, 1]", 2.0, 0.0),
         );
         Scene::parse(&text, Path::new("seam.toml")).unwrap()
     }
