@@ -19,15 +19,6 @@ const OPAQUE_REMAINDER: f32 = 1e-4;
 /// The visible surface of a pixel is the first that leaves less than this share unoccluded.
 const VISIBLE_REMAINDER: f32 = 0.5;
 
-/// In time bins, a footprint that weighs less than this at a pixel (the far tail of its splat)
-/// moves no group's depth, and where it does not lie on the open group's surface it is left out:
-/// it can neither split a surface into two groups, which lets the background through where the
-/// two overlap in time, nor start a chain of its own. On the open group's surface its coverage
-/// and colour count as before. Against the reference at N = 1024, `blur`'s RMSE fell 12 % on
-/// `armadillo_spinning` and `approaching`, 6 % on `crossing_depth`, 1–2 % on the knot and the
-/// bunny, and held on the falling sphere (docs/history.md, "Faint footprints").
-const FAINT_WEIGHT: f32 = 1e-3;
-
 /// The exposure cut into `B` equal bins of time, with the shutter's mass in each. Times are
 /// exposure times ([`super::TimeExtent`]): 0 at shutter open, 1 at close.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -262,8 +253,6 @@ impl<const B: usize> PixelState<B> {
             let (depth, step) = depths_in_bins(&passage, &span, bins);
             (span, depth, step, seen)
         };
-        // One bin is an instant: `static` and each reference frame keep every footprint's say.
-        let faint = B > 1 && w < FAINT_WEIGHT;
         let mut in_bin = depth;
         let same_surface = self.group_depth[span.bins()]
             .iter()
@@ -273,9 +262,6 @@ impl<const B: usize> PixelState<B> {
                 in_bin += step;
                 near
             });
-        if !same_surface && faint {
-            return 0.0;
-        }
         if !same_surface {
             self.close_group(bins);
             // The group just closed lies in front of `f`.
@@ -290,9 +276,7 @@ impl<const B: usize> PixelState<B> {
             self.group_bins[0].min(span.first),
             self.group_bins[1].max(span.last),
         ];
-        if !faint {
-            self.follow([depth, step], f.depth_tolerance, &span);
-        }
+        self.follow([depth, step], f.depth_tolerance, &span);
         if f.additive {
             for c in 0..3 {
                 self.group_emission[c] += w * f.colour[c];
@@ -645,25 +629,6 @@ mod tests {
                 "red until {red_until}: {p:?} against {expected:?}"
             );
         }
-    }
-
-    #[test]
-    fn a_faint_tail_between_two_footprints_of_one_surface_does_not_split_it() {
-        // Two footprints of one surface each cover half of the pixel over the whole exposure;
-        // between them in the order comes the far tail of a splat 0.3 deeper. Counted as a
-        // surface, the tail closed the first half's group and took the second into its own: the
-        // two stacked as layers and a quarter of the background showed. Left out, it costs the
-        // pixel a green it could not have shown through the red.
-        let bins = TimeBins::<16>::over(&Shutter::default());
-        let half = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
-        let tail = layer(0.5 * FAINT_WEIGHT, [0.0, 1.0, 0.0], 1.3, [0.0, 1.0]);
-        let p = composite(&[half, tail, half], &bins);
-        assert!(p[2] < 1e-4, "background {} shows: {p:?}", p[2]);
-        assert!((p[0] - 1.0).abs() < 1e-3, "{p:?}");
-        // Weighing as much as the threshold, it is a surface of its own again.
-        let tail = layer(FAINT_WEIGHT, [0.0, 1.0, 0.0], 1.3, [0.0, 1.0]);
-        let p = composite(&[half, tail, half], &bins);
-        assert!(p[2] > 0.2, "{p:?}");
     }
 
     #[test]
