@@ -445,9 +445,10 @@ fn extreme_triangles_stay_finite_and_their_lists_bounded() {
 #[test]
 fn a_sample_behind_hundreds_of_layers_keeps_what_is_in_front() {
     // 1,100 squares stacked behind a red one sliding past, one triangle of each over the centre:
-    // more intervals than a list holds (1,024), so it is compressed to its visible pieces; the centre pixel is red for the quarter of the
-    // exposure the slider covers it and the nearest layer (blue) otherwise. The layers drift a
-    // hair, so that none is left out unsolved behind a still one before the list fills.
+    // more intervals than a list holds (1,024), so it is compressed to its visible pieces; the
+    // centre pixel is red for the quarter of the exposure the slider covers it and the nearest
+    // layer (blue) otherwise. The layers drift a hair, so that none is left out unsolved behind
+    // a still one before the list fills.
     let mut s = scene(33, 1).with_object(object(
         "slider",
         &square(1.0),

@@ -189,23 +189,22 @@ mod tests {
         Scene::parse(&text, Path::new("seam.toml")).unwrap()
     }
 
-    /// RMSE against the reference at N = 256 of `blur` in `B` bins and in the bins it chooses,
-    /// with the bins it chose.
-    fn errors<const B: usize>(scene: &Scene) -> (f64, f64, MethodStats) {
+    /// The reference at N = 256, and RMSE against it of `blur` in the bins it chooses, with them.
+    fn reference_and_chosen(scene: &Scene) -> (Framebuffer, f64, MethodStats) {
         let reference = Plan::new(scene, &Method::Reference { samples: 256 })
             .unwrap()
             .render(None)
             .image;
-        let error =
-            |image: Framebuffer| root_mean_square_difference(&image.pixels, &reference.pixels);
+        let chosen = Plan::new(scene, &Method::BLUR).unwrap().render(None);
+        let error = root_mean_square_difference(&chosen.image.pixels, &reference.pixels);
+        (reference, error, chosen.stats.method)
+    }
+
+    /// RMSE against `reference` of `blur` in `B` bins.
+    fn error_in<const B: usize>(scene: &Scene, reference: &Framebuffer) -> f64 {
         let plan = Plan::new(scene, &Method::BLUR).unwrap();
-        let chosen = plan.render(None);
-        let in_bins = render_in(scene, &plan, &TimeBins::<B>::over(&scene.shutter));
-        (
-            error(in_bins.image),
-            error(chosen.image),
-            chosen.stats.method,
-        )
+        let image = render_in(scene, &plan, &TimeBins::<B>::over(&scene.shutter)).image;
+        root_mean_square_difference(&image.pixels, &reference.pixels)
     }
 
     #[test]
@@ -216,14 +215,16 @@ mod tests {
         // At 12 px, 16 bins are as good as 32 (RMSE 0.01186 against 0.01184), and 4 are not
         // (0.0178): the scene tells what the bins keep.
         let short = seam_passing(12.0);
-        let (thirty_two, chosen, stats) = errors::<TIME_BINS>(&short);
+        let (reference, chosen, stats) = reference_and_chosen(&short);
+        let thirty_two = error_in::<TIME_BINS>(&short, &reference);
         assert_eq!(stats, bins_chosen(SHORT_PATH_TIME_BINS));
         assert!(chosen <= 1.05 * thirty_two, "{chosen} against {thirty_two}");
-        let (four, _, _) = errors::<4>(&short);
+        let four = error_in::<4>(&short, &reference);
         assert!(four >= 1.3 * thirty_two, "{four} against {thirty_two}");
         // At 48 px, 16 bins would not do (0.0096 against 0.0066).
         let long = seam_passing(48.0);
-        let (sixteen, chosen, stats) = errors::<SHORT_PATH_TIME_BINS>(&long);
+        let (reference, chosen, stats) = reference_and_chosen(&long);
+        let sixteen = error_in::<SHORT_PATH_TIME_BINS>(&long, &reference);
         assert_eq!(stats, bins_chosen(TIME_BINS));
         assert!(sixteen >= 1.2 * chosen, "{sixteen} against {chosen}");
     }

@@ -55,10 +55,9 @@ pub const MAX_SHADOWED_LIGHTS: usize = 8;
 /// texel then kept) on each texel under its path, 1 GB in a 1024² map (and a 4096² map could
 /// have asked sixteen times that). A map whose lists would hold more than its share is drawn
 /// again with half the texels per side, as often as it takes: its shadows keep their strength
-/// and soften. Only where even a
-/// map of [`crate::scene::MIN_SHADOW_MAP`] texels would not fit is each texel's list cut to its
-/// longest pieces, as many as fit (`cap_within`). `--explain` says which. The gallery's scenes
-/// hold at most 1.2 M (`armadillo_shadow`).
+/// and soften. Only where even a map of [`crate::scene::MIN_SHADOW_MAP`] texels would not fit is
+/// each texel's list cut to its longest pieces, as many as fit (`cap_within`). `--explain` says
+/// which. The gallery's scenes hold at most 1.2 M (`armadillo_shadow`).
 pub const MAX_SHADOW_PIECES: usize = 1 << 23;
 
 /// Longest path, in texels, that [`ShadowMap::surely_lit`] walks (about three texels per texel of
