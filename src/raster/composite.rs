@@ -19,6 +19,11 @@ const OPAQUE_REMAINDER: f32 = 1e-4;
 /// The visible surface of a pixel is the first that leaves less than this share unoccluded.
 const VISIBLE_REMAINDER: f32 = 0.5;
 
+/// A footprint whose profile at a pixel is below this share of its peak is faint there: it has
+/// no say in which footprints form a surface ([`PixelState::add`]; docs/math.md, "Faint
+/// footprints").
+pub(super) const FAINT_VALUE: f32 = 0.05;
+
 /// The exposure cut into `B` equal bins of time, with the shutter's mass in each. Times are
 /// exposure times ([`super::TimeExtent`]): 0 at shutter open, 1 at close.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -129,24 +134,45 @@ pub(super) struct PixelState<const B: usize> {
     remaining: f32,
     /// Depth of the group that first left less than [`VISIBLE_REMAINDER`] unoccluded.
     front_depth: f32,
-    /// Σ w · seen · colour over the open group's members ([`Self::add`]).
-    group_colour: [f32; 3],
-    /// Light added by additive footprints of the open group.
-    group_emission: [f32; 3],
-    /// Σ w · seen: what `group_colour` is normalized by.
-    group_weight: f32,
+    /// The open group's members.
+    group: Members<B>,
+    /// Faint footprints that met the open group off its surface, held aside to join the next
+    /// group (docs/math.md, "Faint footprints").
+    held: Members<B>,
     /// Per bin, the depth and tolerance the group's chain of footprints has reached there (∞ where
     /// none covers it): the surface's depth at that time.
     group_depth: [f32; B],
     group_tolerance: [f32; B],
-    group_coverage: [f32; B],
-    /// Per bin, the change from the bin before in the open group's coverage per unit of mass
-    /// over the bins that footprints' time windows cover whole: [`Self::deposit`] marks a run of
-    /// whole bins at its two ends, and closing the group sums the marks into
-    /// `group_coverage` (`Self::settle_whole_bins`).
-    group_whole_bins: [f32; B],
-    /// The bins the open group touches, [first, last): the only ones closing it must visit.
-    group_bins: [usize; 2],
+}
+
+/// What the footprints counted into one group add up to at a pixel.
+#[derive(Clone, Copy)]
+struct Members<const B: usize> {
+    /// Σ w · seen · colour over the members ([`PixelState::add`]).
+    colour: [f32; 3],
+    /// Light added by additive members.
+    emission: [f32; 3],
+    /// Σ w · seen: what `colour` is normalized by.
+    weight: f32,
+    /// The deepest member's depth at the pixel: the group's depth where it has no chain.
+    deepest: f32,
+    coverage: [f32; B],
+    /// Per bin, the change from the bin before in the coverage per unit of mass over the bins
+    /// that footprints' time windows cover whole: [`Self::deposit`] marks a run of whole bins at
+    /// its two ends, and closing the group sums the marks into `coverage`
+    /// ([`Self::settle_whole_bins`]).
+    whole_bins: [f32; B],
+    /// The bins the members touch, [first, last): the only ones closing the group must visit.
+    bins: [usize; 2],
+}
+
+/// Where [`PixelState::add`] counted a footprint, for [`PixelState::add_colour_change`].
+#[derive(Clone, Copy)]
+pub(super) struct Counted {
+    /// The share of its time window that the groups in front leave unoccluded (0 when left
+    /// out; 1 with one bin, where every member of a group sees the same).
+    seen: f32,
+    held: bool,
 }
 
 /// The bins a footprint's time window overlaps, and the window in bin units.
@@ -191,14 +217,10 @@ impl<const B: usize> PixelState<B> {
         transmittance: [1.0; B],
         remaining: 1.0,
         front_depth: f32::INFINITY,
-        group_colour: [0.0; 3],
-        group_emission: [0.0; 3],
-        group_weight: 0.0,
+        group: Members::EMPTY,
+        held: Members::EMPTY,
         group_depth: [f32::INFINITY; B],
         group_tolerance: [0.0; B],
-        group_coverage: [0.0; B],
-        group_whole_bins: [0.0; B],
-        group_bins: [B, 0],
     };
 
     /// Whether nothing behind can show any more.
@@ -207,33 +229,42 @@ impl<const B: usize> PixelState<B> {
         self.remaining < OPAQUE_REMAINDER
     }
 
-    /// Add footprint `f` with weight `w` at this pixel, (x, y).
+    /// Add footprint `f` with weight `w` at this pixel, (x, y); `faint` when its profile there is
+    /// below [`FAINT_VALUE`] of its peak.
     ///
     /// The ternary depth test is made per time bin, against the surface's depth in that bin, each
     /// at the bin's middle time: `f` belongs to the open group when, in every bin its time window
-    /// overlaps, it lies within
-    /// the larger of its own and the group's tolerance there. The group's depth in a bin moves on
-    /// to each member that steps less than the smaller of the two tolerances behind it, so a
-    /// surface whose depth drifts over the exposure (the sloping side of a sliding sphere passes
-    /// a pixel at ever other depths) stays one group, while a surface that meets it at the same
-    /// time farther back starts a new one. A footprint that meets the group at no time cannot be
-    /// hidden by it and joins. With one bin this is the ternary test chained from each footprint
-    /// to the next.
+    /// overlaps, it lies within the larger of its own and the group's tolerance there. The
+    /// group's depth in a bin moves on to each member that steps less than the smaller of the two
+    /// tolerances behind it, so a surface whose depth drifts over the exposure (the sloping side
+    /// of a sliding sphere passes a pixel at ever other depths) stays one group, while a surface
+    /// that meets it at the same time farther back starts a new one. A footprint that meets the
+    /// group at no time cannot be hidden by it and joins. With one bin this is the ternary test
+    /// chained from each footprint to the next.
+    ///
+    /// In time bins a faint footprint, the far tail of a splat or a streak, has no say in the
+    /// groups: it moves no chain, and where it lies off the open group's surface it is held aside
+    /// and joins the next group, rather than closing the open one (docs/math.md, "Faint
+    /// footprints").
     ///
     /// What groups closed before leave unoccluded over the footprint's time window, its share
     /// `seen`, weights its colour in the group's mean: a surface passing behind another shows
     /// the colour it has while it is seen, not while it is hidden. A footprint hidden over its
     /// whole window is left out: it can neither show nor split the group in front (docs/math.md,
-    /// "Time bins for coverage"). Returns `seen` (0 when left out; 1 with one bin, where every
-    /// member of a group sees the same).
+    /// "Time bins for coverage").
     #[inline(always)]
     pub(super) fn add(
         &mut self,
         f: &Footprint,
         w: f32,
+        faint: bool,
         [x, y]: [u32; 2],
         bins: &TimeBins<B>,
-    ) -> f32 {
+    ) -> Counted {
+        const LEFT_OUT: Counted = Counted {
+            seen: 0.0,
+            held: false,
+        };
         // One bin is an instant: the footprint's depth at the pixel holds all of it.
         let (span, depth, step, mut seen) = if B == 1 {
             let whole = BinSpan {
@@ -248,11 +279,12 @@ impl<const B: usize> PixelState<B> {
             let span = bin_span(passage.window, bins);
             let seen = self.seen_share(&span, bins);
             if seen < OPAQUE_REMAINDER {
-                return 0.0;
+                return LEFT_OUT;
             }
             let (depth, step) = depths_in_bins(&passage, &span, bins);
             (span, depth, step, seen)
         };
+        let faint = B > 1 && faint;
         let mut in_bin = depth;
         let same_surface = self.group_depth[span.bins()]
             .iter()
@@ -262,42 +294,36 @@ impl<const B: usize> PixelState<B> {
                 in_bin += step;
                 near
             });
-        if !same_surface {
+        let held = !same_surface && faint;
+        if !same_surface && !faint {
             self.close_group(bins);
+            if self.held.bins[0] < self.held.bins[1] {
+                // What was held aside starts the next group; the group just closed left its
+                // sums empty for holding.
+                std::mem::swap(&mut self.group, &mut self.held);
+            }
             // The group just closed lies in front of `f`.
             if B > 1 {
                 seen = self.seen_share(&span, bins);
                 if seen < OPAQUE_REMAINDER {
-                    return 0.0;
+                    return LEFT_OUT;
                 }
             }
         }
-        self.group_bins = [
-            self.group_bins[0].min(span.first),
-            self.group_bins[1].max(span.last),
-        ];
-        self.follow([depth, step], f.depth_tolerance, &span);
-        if f.additive {
-            for c in 0..3 {
-                self.group_emission[c] += w * f.colour[c];
-            }
-            return seen;
+        if !faint {
+            self.follow([depth, step], f.depth_tolerance, &span);
         }
-        let shown = w * seen;
-        for c in 0..3 {
-            self.group_colour[c] += shown * f.colour[c];
-        }
-        self.group_weight += shown;
-        if B == 1 {
-            self.group_coverage[0] += w;
+        let members = if held {
+            &mut self.held
         } else {
-            self.deposit(w, &span, bins);
-        }
-        seen
+            &mut self.group
+        };
+        members.count(f, w, seen, depth, &span, bins);
+        Counted { seen, held }
     }
 
     /// The share of `span` that the groups closed so far leave unoccluded, each bin counted by
-    /// its overlap × shutter mass, as [`Self::deposit`] spreads a footprint's weight.
+    /// its overlap × shutter mass, as [`Members::deposit`] spreads a footprint's weight.
     #[inline]
     fn seen_share(&self, span: &BinSpan, bins: &TimeBins<B>) -> f32 {
         // Nothing in front yet: the first surface at a pixel, most footprints, sees it all.
@@ -328,17 +354,22 @@ impl<const B: usize> PixelState<B> {
     }
 
     /// Add `change` to the colour of the footprint just added (its colour's change along a
-    /// streak, weighted by its light there), as emission when it is `additive`; `seen` is what
+    /// streak, weighted by its light there), as emission when it is `additive`; `counted` is what
     /// [`Self::add`] returned for it, which weights its colour as it weighted the rest.
     #[inline(always)]
-    pub(super) fn add_colour_change(&mut self, additive: bool, change: [f32; 3], seen: f32) {
-        if seen == 0.0 {
+    pub(super) fn add_colour_change(&mut self, additive: bool, change: [f32; 3], counted: Counted) {
+        if counted.seen == 0.0 {
             return;
         }
-        let (sums, scale) = if additive {
-            (&mut self.group_emission, 1.0)
+        let members = if counted.held {
+            &mut self.held
         } else {
-            (&mut self.group_colour, seen)
+            &mut self.group
+        };
+        let (sums, scale) = if additive {
+            (&mut members.emission, 1.0)
+        } else {
+            (&mut members.colour, counted.seen)
         };
         for (sum, change) in sums.iter_mut().zip(change) {
             *sum += scale * change;
@@ -366,12 +397,134 @@ impl<const B: usize> PixelState<B> {
         }
     }
 
+    fn close_group(&mut self, bins: &TimeBins<B>) {
+        let group = &mut self.group;
+        // Light emitted at this depth is dimmed by what lies in front, not by its own surface.
+        for c in 0..3 {
+            self.colour[c] += self.remaining * group.emission[c];
+        }
+        let [first, last] = group.bins;
+        if group.weight > 0.0 {
+            // One bin (an instant) has no run of whole bins to mark and no other bin to spill
+            // into. Unspilled coverage beyond full is as opaque as full: its excess is left.
+            if B > 1 && group.settle_whole_bins(bins) {
+                group.spill_overflow(bins);
+            }
+            let mut visible = 0.0;
+            for b in first..last {
+                let mass = bins.mass[b];
+                let coverage = std::mem::take(&mut group.coverage[b]);
+                if mass > 0.0 {
+                    let alpha = opacity(f64::from(coverage / mass)) as f32;
+                    visible += self.transmittance[b] * alpha * mass;
+                    self.transmittance[b] *= 1.0 - alpha;
+                }
+            }
+            // The bins the group does not touch keep their transmittance: what it hides is what
+            // it shows.
+            let remaining = larger(self.remaining - visible, 0.0);
+            let k = visible / group.weight;
+            for c in 0..3 {
+                self.colour[c] += k * group.colour[c];
+            }
+            if self.remaining >= VISIBLE_REMAINDER && remaining < VISIBLE_REMAINDER {
+                // The surface's depth as far as its chain reached (its nearest footprint may be
+                // the soft edge of something in front that the chain joined); a group of faint
+                // footprints alone has no chain.
+                let chain = self.group_depth[first..last]
+                    .iter()
+                    .filter(|d| d.is_finite())
+                    .fold(f32::NEG_INFINITY, |a, &d| a.max(d));
+                self.front_depth = if chain.is_finite() {
+                    chain
+                } else {
+                    group.deepest
+                };
+            }
+            self.remaining = remaining;
+        } else if first < last {
+            // Without weight the group deposited no coverage, but for weights that underflow.
+            group.coverage[first..last].fill(0.0);
+            group.whole_bins[first..last].fill(0.0);
+        }
+        if first < last {
+            self.group_depth[first..last].fill(f32::INFINITY);
+        }
+        group.clear_sums();
+    }
+
+    /// The pixel's premultiplied colour, the share of the exposure that shows what lies behind,
+    /// and the depth of its visible surface.
+    pub(super) fn finish(&mut self, bins: &TimeBins<B>) -> ([f32; 3], f32, f32) {
+        self.close_group(bins);
+        if self.held.bins[0] < self.held.bins[1] {
+            // Faint footprints behind the last group, with none after them to join.
+            self.group = self.held;
+            self.close_group(bins);
+        }
+        (self.colour, self.remaining, self.front_depth)
+    }
+}
+
+impl<const B: usize> Members<B> {
+    const EMPTY: Self = Members {
+        colour: [0.0; 3],
+        emission: [0.0; 3],
+        weight: 0.0,
+        deepest: f32::NEG_INFINITY,
+        coverage: [0.0; B],
+        whole_bins: [0.0; B],
+        bins: [B, 0],
+    };
+
+    /// Empty the sums but for the coverage and its marks, which closing the group left empty
+    /// (they are the most to write).
+    fn clear_sums(&mut self) {
+        self.colour = [0.0; 3];
+        self.emission = [0.0; 3];
+        self.weight = 0.0;
+        self.deepest = f32::NEG_INFINITY;
+        self.bins = [B, 0];
+    }
+
+    /// Count footprint `f` with weight `w` in the bins of `span`, a share `seen` of it
+    /// unoccluded, at `depth`.
+    #[inline(always)]
+    fn count(
+        &mut self,
+        f: &Footprint,
+        w: f32,
+        seen: f32,
+        depth: f32,
+        span: &BinSpan,
+        bins: &TimeBins<B>,
+    ) {
+        self.bins = [self.bins[0].min(span.first), self.bins[1].max(span.last)];
+        self.deepest = larger(self.deepest, depth);
+        if f.additive {
+            for c in 0..3 {
+                self.emission[c] += w * f.colour[c];
+            }
+            return;
+        }
+        let shown = w * seen;
+        for c in 0..3 {
+            self.colour[c] += shown * f.colour[c];
+        }
+        self.weight += shown;
+        if B == 1 {
+            self.coverage[0] += w;
+        } else {
+            self.deposit(w, span, bins);
+        }
+    }
+
     /// Spread `w` over the bins of `span`, in proportion to the overlap × shutter mass there.
     #[inline]
     fn deposit(&mut self, w: f32, span: &BinSpan, bins: &TimeBins<B>) {
         let (first, last) = (span.first, span.last);
         let Some([head, tail]) = span.end_masses(bins) else {
-            self.group_coverage[first] += w;
+            self.coverage[first] += w;
             return;
         };
         // Every bin between the first and the last gets `scale` × its mass, marked at the run's
@@ -380,26 +533,26 @@ impl<const B: usize> PixelState<B> {
         let total = head + tail + inner;
         if total > 0.0 {
             let scale = w / total;
-            self.group_coverage[first] += scale * head;
-            self.group_coverage[last - 1] += scale * tail;
+            self.coverage[first] += scale * head;
+            self.coverage[last - 1] += scale * tail;
             if last > first + 2 {
-                self.group_whole_bins[first + 1] += scale;
-                self.group_whole_bins[last - 1] -= scale;
+                self.whole_bins[first + 1] += scale;
+                self.whole_bins[last - 1] -= scale;
             }
         }
     }
 
-    /// Add to each bin of the open group the coverage its marks in `group_whole_bins` stand for
+    /// Add to each bin of the group the coverage its marks in `whole_bins` stand for
     /// (their running sum times the bin's mass), and clear the marks. Returns whether some bin
     /// then holds more than full coverage that [`Self::spill_overflow`] can move: its first
     /// round's test, in the same loop and order, so that a group with nothing to spill (most)
     /// reads its bins once less.
     fn settle_whole_bins(&mut self, bins: &TimeBins<B>) -> bool {
-        let [first, last] = self.group_bins;
+        let [first, last] = self.bins;
         let (mut per_mass, mut largest) = (0.0f32, 0.0f32);
         let mut overflow = Overflow::default();
         for b in first..last {
-            let mark = std::mem::take(&mut self.group_whole_bins[b]);
+            let mark = std::mem::take(&mut self.whole_bins[b]);
             per_mass += mark;
             largest = larger(largest, mark.abs());
             // Where every run has ended the sum is zero but for rounding, which must not leave
@@ -408,8 +561,8 @@ impl<const B: usize> PixelState<B> {
                 per_mass = 0.0;
             }
             let mass = bins.mass[b];
-            self.group_coverage[b] += per_mass * mass;
-            overflow.count(self.group_coverage[b], mass);
+            self.coverage[b] += per_mass * mass;
+            overflow.count(self.coverage[b], mass);
         }
         overflow.spills()
     }
@@ -422,8 +575,8 @@ impl<const B: usize> PixelState<B> {
     /// (0.3×). Clipped bin by bin, 20 % of the background showed through a sliding sphere; the
     /// total is right, only its spread in time is not.
     fn spill_overflow(&mut self, bins: &TimeBins<B>) {
-        let [first, last] = self.group_bins;
-        let coverages = &mut self.group_coverage[first..last];
+        let [first, last] = self.bins;
+        let coverages = &mut self.coverage[first..last];
         let masses = &bins.mass[first..last];
         // Each round fills at least one more bin or places all the excess: at most B rounds.
         for _ in 0..B {
@@ -443,64 +596,6 @@ impl<const B: usize> PixelState<B> {
                 }
             }
         }
-    }
-
-    fn close_group(&mut self, bins: &TimeBins<B>) {
-        // Light emitted at this depth is dimmed by what lies in front, not by its own surface.
-        for c in 0..3 {
-            self.colour[c] += self.remaining * self.group_emission[c];
-        }
-        let [first, last] = self.group_bins;
-        if self.group_weight > 0.0 {
-            // One bin (an instant) has no run of whole bins to mark and no other bin to spill
-            // into. Unspilled coverage beyond full is as opaque as full: its excess is left.
-            if B > 1 && self.settle_whole_bins(bins) {
-                self.spill_overflow(bins);
-            }
-            let mut visible = 0.0;
-            for b in first..last {
-                let mass = bins.mass[b];
-                let coverage = std::mem::take(&mut self.group_coverage[b]);
-                if mass > 0.0 {
-                    let alpha = opacity(f64::from(coverage / mass)) as f32;
-                    visible += self.transmittance[b] * alpha * mass;
-                    self.transmittance[b] *= 1.0 - alpha;
-                }
-            }
-            // The bins the group does not touch keep their transmittance: what it hides is what
-            // it shows.
-            let remaining = larger(self.remaining - visible, 0.0);
-            let k = visible / self.group_weight;
-            for c in 0..3 {
-                self.colour[c] += k * self.group_colour[c];
-            }
-            if self.remaining >= VISIBLE_REMAINDER && remaining < VISIBLE_REMAINDER {
-                // The surface's depth as far as its chain reached (its nearest footprint may be
-                // the soft edge of something in front that the chain joined).
-                self.front_depth = self.group_depth[first..last]
-                    .iter()
-                    .filter(|d| d.is_finite())
-                    .fold(f32::NEG_INFINITY, |a, &d| a.max(d));
-            }
-            self.remaining = remaining;
-        } else if first < last {
-            // Without weight the group deposited no coverage, but for weights that underflow.
-            self.group_coverage[first..last].fill(0.0);
-        }
-        self.group_colour = [0.0; 3];
-        self.group_emission = [0.0; 3];
-        self.group_weight = 0.0;
-        if first < last {
-            self.group_depth[first..last].fill(f32::INFINITY);
-        }
-        self.group_bins = [B, 0];
-    }
-
-    /// The pixel's premultiplied colour, the share of the exposure that shows what lies behind,
-    /// and the depth of its visible surface.
-    pub(super) fn finish(&mut self, bins: &TimeBins<B>) -> ([f32; 3], f32, f32) {
-        self.close_group(bins);
-        (self.colour, self.remaining, self.front_depth)
     }
 }
 
@@ -539,9 +634,18 @@ mod tests {
     }
 
     fn composite<const B: usize>(layers: &[(Footprint, f32)], bins: &TimeBins<B>) -> [f32; 3] {
+        let marked: Vec<_> = layers.iter().map(|&(f, w)| (f, w, false)).collect();
+        composite_marked(&marked, bins)
+    }
+
+    /// [`composite`] of layers each marked faint or not, over a blue background.
+    fn composite_marked<const B: usize>(
+        layers: &[(Footprint, f32, bool)],
+        bins: &TimeBins<B>,
+    ) -> [f32; 3] {
         let mut pixel = PixelState::<B>::EMPTY;
-        for (f, w) in layers {
-            pixel.add(f, *w, [0, 0], bins);
+        for (f, w, faint) in layers {
+            pixel.add(f, *w, *faint, [0, 0], bins);
         }
         let (colour, remaining, _) = pixel.finish(bins);
         [0, 1, 2].map(|c| colour[c] + remaining * [0.0, 0.0, 1.0][c])
@@ -569,7 +673,7 @@ mod tests {
         let mut expected = [0.0f64; 32];
         for &(window, w) in &windows {
             let (f, _) = layer(1.0, [1.0; 3], 1.0, window);
-            pixel.add(&f, w, [0, 0], &bins);
+            pixel.add(&f, w, false, [0, 0], &bins);
             let overlap = |b: usize| {
                 let (lo, hi) = (b as f64 / 32.0, (b + 1) as f64 / 32.0);
                 (window[1].min(hi) - window[0].max(lo)).max(0.0) * f64::from(bins.mass[b])
@@ -579,9 +683,9 @@ mod tests {
                 *e += f64::from(w) * overlap(b) / total;
             }
         }
-        let _ = pixel.settle_whole_bins(&bins);
+        let _ = pixel.group.settle_whole_bins(&bins);
         for (b, &e) in expected.iter().enumerate() {
-            let got = f64::from(pixel.group_coverage[b]);
+            let got = f64::from(pixel.group.coverage[b]);
             // f32 sums of 200 deposits: within 10⁻⁵ relative.
             assert!(
                 (got - e).abs() <= 1e-5 * e.max(1.0),
@@ -629,6 +733,41 @@ mod tests {
                 "red until {red_until}: {p:?} against {expected:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_faint_tail_from_behind_neither_splits_the_surface_in_front_nor_is_lost() {
+        // Red (depth 1) covers the first half of the exposure in two footprints; green (depth 2)
+        // covers all of it. The faint tail of a green splat arrives between the two reds, as
+        // sorting by each footprint's own depth can order them. Red shows for half the exposure
+        // and green for the other half. Had the tail closed red's group, the second red would
+        // have joined green's and mixed with it where it hides it: red 0.375, green 0.625.
+        let bins = TimeBins::<16>::over(&Shutter::default());
+        let (red, _) = layer(0.25, [1.0, 0.0, 0.0], 1.0, [0.0, 0.5]);
+        let (green, _) = layer(1.0, [0.0, 1.0, 0.0], 2.0, [0.0, 1.0]);
+        let tail = 5e-4;
+        let p = composite_marked(
+            &[
+                (red, 0.25, false),
+                (green, tail, true),
+                (red, 0.25, false),
+                (green, 1.0, false),
+            ],
+            &bins,
+        );
+        assert!(
+            (p[0] - 0.5).abs() < 1e-5 && (p[1] - 0.5).abs() < 1e-5 && p[2].abs() < 1e-5,
+            "{p:?}"
+        );
+        // With nothing after it to join, a faint tail behind a surface still covers its share of
+        // what that surface leaves: half of the exposure, so 0.02 × 0.5 of the pixel is green.
+        let (half_red, _) = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
+        let p = composite_marked(&[(half_red, 0.5, false), (green, 0.02, true)], &bins);
+        let expected = [0.5, 0.01, 0.49];
+        assert!(
+            (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
+            "{p:?} against {expected:?}"
+        );
     }
 
     #[test]

@@ -995,9 +995,11 @@ fn composite_footprint<const B: usize>(
             let (value, moment) = shape.value(row_shape, dx);
             let weight = f.amplitude * value;
             if weight > 0.0 {
-                let seen = state.add(f, weight, [x, y], bins);
+                let faint = value < composite::FAINT_VALUE;
+                let counted = state.add(f, weight, faint, [x, y], bins);
                 if let Some(slope) = colour_slope {
-                    state.add_colour_change(f.additive, f.colour_change_at(moment, slope), seen);
+                    let change = f.colour_change_at(moment, slope);
+                    state.add_colour_change(f.additive, change, counted);
                 }
             }
         }
