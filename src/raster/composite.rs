@@ -377,8 +377,9 @@ impl<const B: usize> PixelState<B> {
     }
 
     /// Move the group's depth in the bins of `span` on to a member at `depth` in its first bin and
-    /// `step` more in each next one: in bins it did not cover yet, and where it lies behind by
-    /// less than the smaller tolerance.
+    /// `step` more in each next one: in bins it did not cover yet, taking its tolerance, and where
+    /// it lies behind by less than the smaller tolerance, taking that one in time bins (its own in
+    /// an instant).
     #[inline]
     fn follow(&mut self, [depth, step]: [f32; 2], tolerance: f32, span: &BinSpan) {
         let mut in_bin = depth;
@@ -387,11 +388,19 @@ impl<const B: usize> PixelState<B> {
             .zip(&mut self.group_tolerance[span.bins()])
         {
             let behind = in_bin - *group_depth;
-            if *group_depth == f32::INFINITY
-                || (behind > 0.0 && behind <= smaller(*group_tolerance, tolerance))
-            {
+            if *group_depth == f32::INFINITY {
                 *group_depth = in_bin;
                 *group_tolerance = tolerance;
+            } else if behind > 0.0 && behind <= smaller(*group_tolerance, tolerance) {
+                *group_depth = in_bin;
+                // In time bins a bin keeps the smaller tolerance: a splat seen nearly edge-on,
+                // whose tolerance spans more than one surface, must not lend it to the chain
+                // for the footprints after it to join by (docs/math.md, "Faint footprints").
+                if B == 1 {
+                    *group_tolerance = tolerance;
+                } else {
+                    *group_tolerance = smaller(*group_tolerance, tolerance);
+                }
             }
             in_bin += step;
         }
@@ -764,6 +773,25 @@ mod tests {
         let (half_red, _) = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
         let p = composite_marked(&[(half_red, 0.5, false), (green, 0.02, true)], &bins);
         let expected = [0.5, 0.01, 0.49];
+        assert!(
+            (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
+            "{p:?} against {expected:?}"
+        );
+    }
+
+    #[test]
+    fn a_splat_seen_edge_on_lends_the_chain_no_tolerance_in_time_bins() {
+        // Red (depth 1) covers half the pixel all the exposure; a red splat seen nearly edge-on
+        // (depth tolerance 5) moves its chain 0.005 deeper; green, 1 deeper, covers all of the
+        // pixel all the exposure. Red must hide half of green. Had the chain taken the edge-on
+        // splat's tolerance, green would have joined red's group and mixed with it: red 0.33.
+        let bins = TimeBins::<16>::over(&Shutter::default());
+        let red = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
+        let (mut edge_on, _) = layer(0.01, [1.0, 0.0, 0.0], 1.005, [0.0, 1.0]);
+        edge_on.depth_tolerance = 5.0;
+        let green = layer(1.0, [0.0, 1.0, 0.0], 2.0, [0.0, 1.0]);
+        let p = composite(&[red, (edge_on, 0.01), green], &bins);
+        let expected = [0.51, 0.49, 0.0];
         assert!(
             (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
             "{p:?} against {expected:?}"
