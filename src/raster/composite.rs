@@ -1,13 +1,14 @@
 //! Per-pixel compositing of depth-sorted footprints, in bins of shutter time.
 //!
 //! The ternary depth test groups footprints into surfaces (a footprint within the larger of its
-//! own and the open group's depth tolerance of the group's depth belongs to it); a group's colour
-//! is the normalized Σwc/Σw, each member's w counted for the share of its time the groups in front
-//! leave it seen, and the share of the pixel it covers is counted per time bin: it
-//! hides what lies behind it only in the bins in which it covers the pixel, so that time-disjoint
-//! coverage of a sliding surface adds up instead of stacking as transparent layers. With one bin
-//! (an instant) this is plain front-to-back compositing with α = opacity(Σw). Why bins, with the
-//! measurements: docs/math.md, "Time bins for coverage".
+//! own and the open group's depth tolerance of the group's depth belongs to it; in time bins a
+//! footprint's faint tail has no say in it); a group's colour is the normalized Σwc/Σw, each
+//! member's w counted for the share of its time the groups in front leave it seen, and the share
+//! of the pixel it covers is counted per time bin: it hides what lies behind it only in the bins
+//! in which it covers the pixel, so that time-disjoint coverage of a sliding surface adds up
+//! instead of stacking as transparent layers. With one bin (an instant) this is plain
+//! front-to-back compositing with α = opacity(Σw). Why bins, with the measurements: docs/math.md,
+//! "Time bins for coverage".
 
 use super::{ceil_small, floor_small, larger, opacity, smaller, Footprint, Passage};
 use crate::scene::shutter::Shutter;
@@ -647,6 +648,11 @@ mod tests {
         composite_marked(&marked, bins)
     }
 
+    /// Whether `p` is `expected` in every channel, within the rounding of a few f32 sums.
+    fn near(p: [f32; 3], expected: [f32; 3]) -> bool {
+        (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5)
+    }
+
     /// [`composite`] of layers each marked faint or not, over a blue background.
     fn composite_marked<const B: usize>(
         layers: &[(Footprint, f32, bool)],
@@ -714,10 +720,7 @@ mod tests {
         let red = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 0.5]);
         let green = layer(0.5, [0.0, 1.0, 0.0], 2.0, [0.5, 1.0]);
         let p = composite(&[red, green], &bins);
-        assert!(
-            (p[0] - 0.5).abs() < 1e-5 && (p[1] - 0.5).abs() < 1e-5 && p[2].abs() < 1e-5,
-            "{p:?}"
-        );
+        assert!(near(p, [0.5, 0.5, 0.0]), "{p:?}");
         // With one bin the same coverage is treated as stacked layers: the background leaks.
         let leaky = composite(&[red, green], &TimeBins::INSTANT);
         assert!((leaky[2] - 0.25).abs() < 1e-5, "{leaky:?}");
@@ -738,7 +741,7 @@ mod tests {
             let yellow_seen = 0.5 - red_until;
             let expected = [red_until + yellow_seen, yellow_seen + 0.5, 0.0];
             assert!(
-                (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
+                near(p, expected),
                 "red until {red_until}: {p:?} against {expected:?}"
             );
         }
@@ -764,19 +767,13 @@ mod tests {
             ],
             &bins,
         );
-        assert!(
-            (p[0] - 0.5).abs() < 1e-5 && (p[1] - 0.5).abs() < 1e-5 && p[2].abs() < 1e-5,
-            "{p:?}"
-        );
+        assert!(near(p, [0.5, 0.5, 0.0]), "{p:?}");
         // With nothing after it to join, a faint tail behind a surface still covers its share of
         // what that surface leaves: half of the exposure, so 0.02 × 0.5 of the pixel is green.
         let (half_red, _) = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
         let p = composite_marked(&[(half_red, 0.5, false), (green, 0.02, true)], &bins);
         let expected = [0.5, 0.01, 0.49];
-        assert!(
-            (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
-            "{p:?} against {expected:?}"
-        );
+        assert!(near(p, expected), "{p:?} against {expected:?}");
     }
 
     #[test]
@@ -792,10 +789,7 @@ mod tests {
         let green = layer(1.0, [0.0, 1.0, 0.0], 2.0, [0.0, 1.0]);
         let p = composite(&[red, (edge_on, 0.01), green], &bins);
         let expected = [0.51, 0.49, 0.0];
-        assert!(
-            (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
-            "{p:?} against {expected:?}"
-        );
+        assert!(near(p, expected), "{p:?} against {expected:?}");
     }
 
     #[test]
