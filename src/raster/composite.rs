@@ -648,9 +648,13 @@ mod tests {
         composite_marked(&marked, bins)
     }
 
-    /// Whether `p` is `expected` in every channel, within the rounding of a few f32 sums.
-    fn near(p: [f32; 3], expected: [f32; 3]) -> bool {
-        (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5)
+    /// Assert that `p` is `expected` in every channel, within the rounding of a few f32 sums.
+    #[track_caller]
+    fn assert_near(p: [f32; 3], expected: [f32; 3], context: &str) {
+        assert!(
+            (0..3).all(|c| (p[c] - expected[c]).abs() < 1e-5),
+            "{context}{p:?} against {expected:?}"
+        );
     }
 
     /// [`composite`] of layers each marked faint or not, over a blue background.
@@ -720,7 +724,7 @@ mod tests {
         let red = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 0.5]);
         let green = layer(0.5, [0.0, 1.0, 0.0], 2.0, [0.5, 1.0]);
         let p = composite(&[red, green], &bins);
-        assert!(near(p, [0.5, 0.5, 0.0]), "{p:?}");
+        assert_near(p, [0.5, 0.5, 0.0], "");
         // With one bin the same coverage is treated as stacked layers: the background leaks.
         let leaky = composite(&[red, green], &TimeBins::INSTANT);
         assert!((leaky[2] - 0.25).abs() < 1e-5, "{leaky:?}");
@@ -740,10 +744,7 @@ mod tests {
             let p = composite(&[red, yellow, green], &bins);
             let yellow_seen = 0.5 - red_until;
             let expected = [red_until + yellow_seen, yellow_seen + 0.5, 0.0];
-            assert!(
-                near(p, expected),
-                "red until {red_until}: {p:?} against {expected:?}"
-            );
+            assert_near(p, expected, &format!("red until {red_until}: "));
         }
     }
 
@@ -767,13 +768,12 @@ mod tests {
             ],
             &bins,
         );
-        assert!(near(p, [0.5, 0.5, 0.0]), "{p:?}");
+        assert_near(p, [0.5, 0.5, 0.0], "");
         // With nothing after it to join, a faint tail behind a surface still covers its share of
         // what that surface leaves: half of the exposure, so 0.02 × 0.5 of the pixel is green.
         let (half_red, _) = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
         let p = composite_marked(&[(half_red, 0.5, false), (green, 0.02, true)], &bins);
-        let expected = [0.5, 0.01, 0.49];
-        assert!(near(p, expected), "{p:?} against {expected:?}");
+        assert_near(p, [0.5, 0.01, 0.49], "");
     }
 
     #[test]
@@ -788,8 +788,7 @@ mod tests {
         edge_on.depth_tolerance = 5.0;
         let green = layer(1.0, [0.0, 1.0, 0.0], 2.0, [0.0, 1.0]);
         let p = composite(&[red, (edge_on, 0.01), green], &bins);
-        let expected = [0.51, 0.49, 0.0];
-        assert!(near(p, expected), "{p:?} against {expected:?}");
+        assert_near(p, [0.51, 0.49, 0.0], "");
     }
 
     #[test]
@@ -799,10 +798,7 @@ mod tests {
         let red = layer(1.0, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
         let green = layer(1.0, [0.0, 1.0, 0.0], 2.0, [0.0, 1.0]);
         let p = composite(&[red, green], &bins);
-        assert!(
-            (p[0] - 1.0).abs() < 1e-5 && p[1].abs() < 1e-5 && p[2].abs() < 1e-5,
-            "{p:?}"
-        );
+        assert_near(p, [1.0, 0.0, 0.0], "");
     }
 
     #[test]

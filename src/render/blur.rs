@@ -189,22 +189,26 @@ mod tests {
         Scene::parse(&text, Path::new("seam.toml")).unwrap()
     }
 
-    /// The reference at N = 256, and RMSE against it of `blur` in the bins it chooses, with them.
-    fn reference_and_chosen(scene: &Scene) -> (Framebuffer, f64, MethodStats) {
+    /// The reference at N = 256, and `blur`'s plan.
+    fn reference_and_plan(scene: &Scene) -> (Framebuffer, Plan<'_>) {
         let reference = Plan::new(scene, &Method::Reference { samples: 256 })
             .unwrap()
             .render(None)
             .image;
-        let chosen = Plan::new(scene, &Method::BLUR).unwrap().render(None);
-        let error = root_mean_square_difference(&chosen.image.pixels, &reference.pixels);
-        (reference, error, chosen.stats.method)
+        (reference, Plan::new(scene, &Method::BLUR).unwrap())
     }
 
-    /// RMSE against `reference` of `blur` in `B` bins.
-    fn error_in<const B: usize>(scene: &Scene, reference: &Framebuffer) -> f64 {
-        let plan = Plan::new(scene, &Method::BLUR).unwrap();
-        let image = render_in(scene, &plan, &TimeBins::<B>::over(&scene.shutter)).image;
+    /// RMSE against `reference` of `blur` as `plan` draws it, in `B` bins.
+    fn error_in<const B: usize>(scene: &Scene, plan: &Plan, reference: &Framebuffer) -> f64 {
+        let image = render_in(scene, plan, &TimeBins::<B>::over(&scene.shutter)).image;
         root_mean_square_difference(&image.pixels, &reference.pixels)
+    }
+
+    /// RMSE against `reference` of `blur` in the bins it chooses, with them.
+    fn chosen_error(plan: &Plan, reference: &Framebuffer) -> (f64, MethodStats) {
+        let chosen = plan.render(None);
+        let error = root_mean_square_difference(&chosen.image.pixels, &reference.pixels);
+        (error, chosen.stats.method)
     }
 
     #[test]
@@ -215,16 +219,18 @@ mod tests {
         // At 12 px, 16 bins are as good as 32 (RMSE 0.01186 against 0.01184), and 4 are not
         // (0.0178): the scene tells what the bins keep.
         let short = seam_passing(12.0);
-        let (reference, chosen, stats) = reference_and_chosen(&short);
-        let thirty_two = error_in::<TIME_BINS>(&short, &reference);
+        let (reference, plan) = reference_and_plan(&short);
+        let (chosen, stats) = chosen_error(&plan, &reference);
+        let thirty_two = error_in::<TIME_BINS>(&short, &plan, &reference);
         assert_eq!(stats, bins_chosen(SHORT_PATH_TIME_BINS));
         assert!(chosen <= 1.05 * thirty_two, "{chosen} against {thirty_two}");
-        let four = error_in::<4>(&short, &reference);
+        let four = error_in::<4>(&short, &plan, &reference);
         assert!(four >= 1.3 * thirty_two, "{four} against {thirty_two}");
         // At 48 px, 16 bins would not do (0.0096 against 0.0066).
         let long = seam_passing(48.0);
-        let (reference, chosen, stats) = reference_and_chosen(&long);
-        let sixteen = error_in::<SHORT_PATH_TIME_BINS>(&long, &reference);
+        let (reference, plan) = reference_and_plan(&long);
+        let (chosen, stats) = chosen_error(&plan, &reference);
+        let sixteen = error_in::<SHORT_PATH_TIME_BINS>(&long, &plan, &reference);
         assert_eq!(stats, bins_chosen(TIME_BINS));
         assert!(sixteen >= 1.2 * chosen, "{sixteen} against {chosen}");
     }
