@@ -4,7 +4,7 @@
 //!
 //! `cargo bench --bench raster -- [SCENE] [METHOD] [SIZE] [REPEATS] [LOD]`, by default
 //! `gallery/torus_knot.toml static 1024 9 auto` (`LOD` is `auto` or `off`). Threads: `RAYON_NUM_THREADS`. Methods: `static`,
-//! `blur`, `kernel3d`, `reference:N`. Profile it with
+//! `blur`, `kernel3d`, `analytic`, `reference:N`. Profile it with
 //! `perf record -g target/release/deps/raster-* gallery/torus_knot.toml static 1024 40`.
 
 mod common;
@@ -21,9 +21,10 @@ fn main() -> streak::Result<()> {
         "static" => Method::STATIC,
         "blur" => Method::BLUR,
         "kernel3d" => Method::KERNEL3D,
+        "analytic" => Method::ANALYTIC,
         other => match other.strip_prefix("reference:").map(str::parse) {
             Some(Ok(samples)) => Method::Reference { samples },
-            _ => panic!("unknown method {other}: static, blur, kernel3d or reference:N"),
+            _ => panic!("unknown method {other}: static, blur, kernel3d, analytic or reference:N"),
         },
     };
     let size: u32 = arg(2, "1024").parse().expect("SIZE is a number of pixels");
