@@ -10,7 +10,7 @@
 //!    the plain ratio T_full / T_lod).
 //!
 //! `cargo bench --bench mesh_lod -- [SIZE] [SIGMAS] [SPEEDS] [REPEATS] [SCENES]`, by default
-//! `320 7.3,1,0.3 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders,
+//! `320 7.3,1,0.5 10,30,90,270 3`: each speed-up compares median times over `REPEATS` renders,
 //! full detail and simplified taking turns. Given a folder `SCENES`, each scene is also written
 //! there (`armadillo-90px-0.3.toml`, say), for `streak render --explain` or the `raster` bench.
 //! Reads the meshes from `../shared/data/meshes/`.
@@ -153,7 +153,7 @@ fn flip(test: &Framebuffer, reference: &Framebuffer) -> f64 {
 fn main() -> streak::Result<()> {
     let arg = common::args();
     let width: u32 = arg(0, "320").parse().expect("SIZE is a number of pixels");
-    let sigmas: Vec<f64> = arg(1, "7.3,1,0.3")
+    let sigmas: Vec<f64> = arg(1, "7.3,1,0.5")
         .split(',')
         .map(|s| s.parse().expect("SIGMAS are numbers"))
         .collect();

@@ -146,12 +146,13 @@ impl MeshLod {
             } => {
                 let (triangles, stats) = &**mesh;
                 format!(
-                    "mesh: {faces_in} faces → {} (screen speed {:.0}–{:.0} px per shutter; projected perimeters up to {} v + {} px; refused attempts to collapse: {} at the detail limit, {} folding, {} topology, {} valence){}",
+                    "mesh: {faces_in} faces → {} (screen speed {:.0}–{:.0} px per shutter; projected perimeters up to min({} v + {}, {}) px; refused attempts to collapse: {} at the detail limit, {} folding, {} topology, {} valence){}",
                     triangles.triangles.len(),
                     speed_px[0],
                     speed_px[1],
                     rule.sigma_speed,
                     rule.sigma_base,
+                    rule.max_perimeter_px,
                     stats.limit_refusals,
                     stats.fold_refusals,
                     stats.topology_refusals,
@@ -942,6 +943,12 @@ struct MeshView {
 static SIMPLIFIED_IN_VIEW: Recent<MeshView, (speed::Shared, [f64; 2])> =
     Recent::new(speed::CACHE_ENTRIES);
 
+/// Surfels resampled per face of a simplified mesh, at the least. One per face (as the
+/// armadillo's 100,000 surfels on its 99,976 faces) leaves the few faces of a fast mesh one large
+/// splat each: at 90 px per shutter `blur` had ꟻLIP 0.035 against full detail with 1, 0.023 with 4
+/// and 0.021 with 16, and took 0.033, 0.038 and 0.042 s (docs/math.md, "Mesh level of detail").
+const MIN_RESAMPLED_PER_FACE: f64 = 4.0;
+
 /// Surfels resampled from recent simplified meshes, by mesh and count (sampling the bunny's
 /// 40 k took 15–20 ms of every plan).
 static RESAMPLED: Recent<(speed::Shared, usize), Arc<Vec<Surfel>>> =
@@ -1012,10 +1019,13 @@ fn mesh_lod(
     let surfels = if as_triangles {
         None
     } else {
-        // As many surfels per face as the full mesh had.
-        let count = (object.surfels().len() as f64 * shared.0.triangles.len() as f64
-            / mesh.triangles.len() as f64)
+        // As many surfels per face as the full mesh had, and at least a few, but never more
+        // than the full mesh's.
+        let faces = shared.0.triangles.len() as f64;
+        let per_face = object.surfels().len() as f64 / mesh.triangles.len() as f64;
+        let count = (faces * per_face.max(MIN_RESAMPLED_PER_FACE))
             .ceil()
+            .min(object.surfels().len() as f64)
             .max(1.0) as usize;
         let resampled = match RESAMPLED.find(|(m, c)| Arc::ptr_eq(m, &shared) && *c == count) {
             Some(found) => found,

@@ -40,12 +40,19 @@ struct SceneSpec {
     object: Vec<ObjectSpec>,
 }
 
-/// `[mesh_detail]`: Zhang et al.'s σ₁ and σ₂ for the level of detail of moving meshes.
+/// `[mesh_detail]`: Zhang et al.'s σ₁ and σ₂ for the level of detail of moving meshes, and the
+/// cap on the perimeter they allow.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MeshDetailSpec {
     sigma_speed: f64,
     sigma_base: f64,
+    #[serde(default = "default_max_perimeter")]
+    max_perimeter: f64,
+}
+
+fn default_max_perimeter() -> f64 {
+    crate::simplify::speed::DEFAULT_MAX_PERIMETER_PX
 }
 
 fn default_background() -> [f64; 3] {
@@ -546,6 +553,7 @@ fn validate(spec: SceneSpec, path: &Path, mut budget: Budget) -> Result<Scene> {
             .with_mesh_detail(DetailRule {
                 sigma_speed: d.sigma_speed,
                 sigma_base: d.sigma_base,
+                max_perimeter_px: d.max_perimeter,
             })
             .map_err(within("mesh_detail"))?;
     }
@@ -788,6 +796,32 @@ mod tests {
         assert!(message.contains("object[0].shape.radius"), "{message}");
         let message = error_of(&MINIMAL.replace("eye = [0, 0, 5]", "eye = [0, inf, 5]"));
         assert!(message.contains("camera.eye[1]"), "{message}");
+    }
+
+    /// The mesh detail rule is read with its cap defaulted, and a cap that is not a positive
+    /// number of px (which would keep no face or every face) is refused by name.
+    #[test]
+    fn mesh_detail_takes_its_cap_or_the_default_and_refuses_a_cap_that_is_not_positive() {
+        let with = |lines: &str| {
+            format!("[mesh_detail]\nsigma_speed = 0.4\nsigma_base = 0.3\n{lines}{MINIMAL}")
+        };
+        let rule = parse(&with("")).unwrap().mesh_detail;
+        assert_eq!(
+            rule.max_perimeter_px,
+            crate::simplify::speed::DEFAULT_MAX_PERIMETER_PX
+        );
+        assert_eq!(rule.perimeter_px(10.0), 4.3);
+        assert_eq!(rule.perimeter_px(1000.0), rule.max_perimeter_px);
+        let rule = parse(&with("max_perimeter = 20\n")).unwrap().mesh_detail;
+        assert_eq!(rule.perimeter_px(10.0), 4.3);
+        assert_eq!(rule.perimeter_px(100.0), 20.0);
+        for cap in ["0", "-3", "nan", "inf"] {
+            let message = error_of(&with(&format!("max_perimeter = {cap}\n")));
+            assert!(
+                message.contains("mesh_detail.max_perimeter"),
+                "{cap}: {message}"
+            );
+        }
     }
 
     #[test]

@@ -406,7 +406,7 @@ impl Scene {
     }
 
     /// The same scene with moving meshes simplified by `rule`; an error names `sigma_speed` or
-    /// `sigma_base` when it is negative or not finite.
+    /// `sigma_base` when it is negative or not finite, `max_perimeter` when it is not positive.
     pub fn with_mesh_detail(mut self, rule: DetailRule) -> Result<Scene> {
         for (field, v) in [
             ("sigma_speed", rule.sigma_speed),
@@ -415,6 +415,13 @@ impl Scene {
             if !(finite(field, v)? >= 0.0) {
                 return Err(Error::invalid(field, format!("{v}: must not be negative")));
             }
+        }
+        let cap = rule.max_perimeter_px;
+        if !(finite("max_perimeter", cap)? > 0.0) {
+            return Err(Error::invalid(
+                "max_perimeter",
+                format!("{cap}: must be a positive number of px"),
+            ));
         }
         self.mesh_detail = rule;
         Ok(self)

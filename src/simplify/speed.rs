@@ -28,13 +28,20 @@ use crate::surfels::Mesh;
 pub const ZHANG_SIGMA_SPEED: f64 = 7.3;
 
 /// The σ₁ the plan uses unless a scene says otherwise: Zhang's 7.3, with v in px per shutter,
-/// took the armadillo to 4 faces at 30 px per shutter (ꟻLIP 0.15 against full detail); 0.3 keeps
-/// ꟻLIP at 0.031 at 90 px per shutter with a 16× faster `analytic` (docs/math.md, "Mesh level of
-/// detail"; `cargo bench --bench mesh_lod`).
-pub const DEFAULT_SIGMA_SPEED: f64 = 0.3;
+/// took the armadillo to 4 faces at 30 px per shutter (ꟻLIP 0.15 against full detail); 0.5
+/// keeps ꟻLIP at 0.033 at 90 px per shutter with a 13× faster `analytic` (docs/math.md, "Mesh
+/// level of detail"; `cargo bench --bench mesh_lod`).
+pub const DEFAULT_SIGMA_SPEED: f64 = 0.5;
 
 /// Zhang et al.'s σ₂ (eq. 8), px of perimeter at no speed.
 pub const ZHANG_SIGMA_BASE: f64 = 0.36;
+
+/// The longest projected perimeter, px, the plan lets a triangle reach however fast it moves,
+/// unless a scene says otherwise. Measured, ꟻLIP against full detail grows with the perimeter
+/// kept and not less at higher speed: σ₁ v + σ₂ alone took the armadillo at 270 px per shutter
+/// to 190 faces and ꟻLIP 0.074; at 45 px it keeps 858 and 0.039 (docs/math.md, "Mesh level of
+/// detail").
+pub const DEFAULT_MAX_PERIMETER_PX: f64 = 45.0;
 
 /// Times sampled over the shutter for each vertex's screen path.
 pub const PATH_SAMPLES: usize = 17;
@@ -43,13 +50,15 @@ pub const PATH_SAMPLES: usize = 17;
 pub const CACHE_ENTRIES: usize = 8;
 
 /// Eq. 8 of Zhang et al.: the kept spatial frequency ρ = 1/(σ₁ v + σ₂), a triangle's frequency
-/// taken as the reciprocal of its projected perimeter in px.
+/// taken as the reciprocal of its projected perimeter in px; the perimeter is also capped.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DetailRule {
     /// σ₁: perimeter px per px of screen speed per shutter.
     pub sigma_speed: f64,
     /// σ₂: perimeter px at no speed.
     pub sigma_base: f64,
+    /// The longest perimeter, px, at any speed.
+    pub max_perimeter_px: f64,
 }
 
 impl Default for DetailRule {
@@ -57,15 +66,17 @@ impl Default for DetailRule {
         DetailRule {
             sigma_speed: DEFAULT_SIGMA_SPEED,
             sigma_base: ZHANG_SIGMA_BASE,
+            max_perimeter_px: DEFAULT_MAX_PERIMETER_PX,
         }
     }
 }
 
 impl DetailRule {
-    /// The largest projected perimeter, px, a triangle moving `speed_px` per shutter may have.
+    /// The largest projected perimeter, px, a triangle moving `speed_px` per shutter may have:
+    /// min(σ₁ v + σ₂, the cap).
     #[must_use]
     pub fn perimeter_px(&self, speed_px: f64) -> f64 {
-        self.sigma_speed * speed_px + self.sigma_base
+        (self.sigma_speed * speed_px + self.sigma_base).min(self.max_perimeter_px)
     }
 }
 
