@@ -10,6 +10,7 @@ use std::collections::HashMap;
 use glam::DVec3;
 use streak::lod::Lod;
 use streak::scene::{Camera, Keyframe, Motion, Object, Pose, TriangleMesh};
+use streak::simplify::speed::DetailRule;
 use streak::simplify::{
     direction_weight, simplify, Options, Simplified, Weighting, BLOCK_VERTICES,
 };
@@ -504,6 +505,17 @@ fn the_plan_simplifies_moving_meshes_by_their_speed_and_leaves_still_ones_alone(
         explain.contains(&format!("{full} faces → {simplified}")),
         "{explain}"
     );
+    // The cap on the perimeter binds at any speed: at 20 px the fast sphere keeps more faces.
+    let capped = fast
+        .clone()
+        .with_mesh_detail(DetailRule {
+            max_perimeter_px: 20.0,
+            ..DetailRule::default()
+        })
+        .unwrap();
+    let (finer, explain) = faces(&capped, &Method::ANALYTIC, Lod::Auto);
+    assert!(simplified < finer && finer < full, "{simplified} {explain}");
+    assert!(explain.contains("0.36, 20) px"), "{explain}");
     let simplifies = |scene: &Scene, lod: Lod| {
         Plan::with_lod(scene, &Method::ANALYTIC, lod)
             .unwrap()
