@@ -945,8 +945,9 @@ static SIMPLIFIED_IN_VIEW: Recent<MeshView, (speed::Shared, [f64; 2])> =
 
 /// Surfels resampled per face of a simplified mesh, at the least. One per face (as the
 /// armadillo's 100,000 surfels on its 99,976 faces) leaves the few faces of a fast mesh one large
-/// splat each: at 90 px per shutter `blur` had ꟻLIP 0.035 against full detail with 1, 0.023 with 4
-/// and 0.021 with 16, and took 0.033, 0.038 and 0.042 s (docs/math.md, "Mesh level of detail").
+/// splat each: the armadillo at 90 px per shutter, kept at 1,832 faces, had `blur` ꟻLIP 0.035
+/// against full detail with 1, 0.023 with 4 and 0.021 with 16, in 0.033, 0.038 and 0.042 s
+/// (docs/math.md, "Mesh level of detail").
 const MIN_RESAMPLED_PER_FACE: f64 = 4.0;
 
 /// Surfels resampled from recent simplified meshes, by mesh and count (sampling the bunny's

@@ -1,7 +1,8 @@
 //! Level of detail for a moving mesh from its screen speed (Zhang et al. 2014, §5 and
 //! Appendix B): a triangle whose projected perimeter is below σ₁ v + σ₂ pixels (v the screen
 //! speed in px per shutter) shows no detail the blur keeps, so each vertex gets a detail limit:
-//! that perimeter in object units. The limit is conservative over the shutter: the scale is
+//! that perimeter, capped (measured, the blur does not hide more at higher speeds), in object
+//! units. The limit is conservative over the shutter: the scale is
 //! the largest (nearest) the vertex has on screen at any sampled time, as Appendix B takes the
 //! nearest position; the speed is the length of its screen path. Each vertex also gets its
 //! screen motion, lifted back to object space (its component along the view axis dropped), to
