@@ -114,11 +114,18 @@ fn turn_for(case: &Case, speed: f64, width: u32) -> streak::Result<f64> {
     let object = &probe.objects[0];
     let mesh = object.mesh().expect("a triangle object");
     let shutter = [probe.shutter.open, probe.shutter.close];
-    let fastest = ScreenMotion::of(&probe.camera, object, &mesh.positions, shutter)
-        .speed_px
-        .into_iter()
-        .fold(0.0, f64::max);
+    let fastest = fastest_px(&ScreenMotion::of(
+        &probe.camera,
+        object,
+        &mesh.positions,
+        shutter,
+    ));
     Ok(if fastest > 0.0 { speed / fastest } else { 1.0 })
+}
+
+/// The screen speed of the fastest vertex, px per shutter.
+fn fastest_px(screen: &ScreenMotion) -> f64 {
+    screen.speed_px.iter().copied().fold(0.0, f64::max)
 }
 
 /// Renders timed: the last image, the first plan's time (with any simplification), the median
@@ -208,7 +215,7 @@ fn main() -> streak::Result<()> {
             let target = (share * mesh.triangles.len() as f64) as usize;
             let shutter = [scene.shutter.open, scene.shutter.close];
             let screen = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
-            let fastest = screen.speed_px.iter().copied().fold(0.0, f64::max);
+            let fastest = fastest_px(&screen);
             let motion = screen.motion;
             let mut line = format!(
                 "{} at {speed} px/shutter (fastest vertex {fastest:.0} px): full {} faces, analytic {:.2} s; at {target} faces ꟻLIP vs full:",
