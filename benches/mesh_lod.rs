@@ -201,8 +201,9 @@ fn main() -> streak::Result<()> {
     for case in &CASES {
         for &speed in &speeds {
             let share = share(speed);
+            let turn = turn_for(case, speed, width)?;
             let scene = Scene::parse(
-                &scene_text(case, speed, width, sigmas[0], turn_for(case, speed, width)?),
+                &scene_text(case, speed, width, sigmas[0], turn),
                 Path::new("bench.toml"),
             )?;
             let full = timed_render(&scene, &Method::ANALYTIC, Lod::Off)?;
@@ -251,7 +252,7 @@ fn main() -> streak::Result<()> {
             }
             println!("{line}");
             for &sigma in &sigmas {
-                let text = scene_text(case, speed, width, sigma, turn_for(case, speed, width)?);
+                let text = scene_text(case, speed, width, sigma, turn);
                 if !scenes.is_empty() {
                     let kind = case.name.split(' ').next().unwrap_or("mesh");
                     let path = Path::new(&scenes).join(format!("{kind}-{speed}px-{sigma}.toml"));

@@ -298,7 +298,7 @@ impl<const B: usize> PixelState<B> {
         let held = !same_surface && faint;
         if !same_surface && !faint {
             self.close_group(bins);
-            if self.held.bins[0] < self.held.bins[1] {
+            if self.held.counts_any() {
                 // What was held aside starts the next group; the group just closed left its
                 // sums empty for holding.
                 std::mem::swap(&mut self.group, &mut self.held);
@@ -314,12 +314,7 @@ impl<const B: usize> PixelState<B> {
         if !faint {
             self.follow([depth, step], f.depth_tolerance, &span);
         }
-        let members = if held {
-            &mut self.held
-        } else {
-            &mut self.group
-        };
-        members.count(f, w, seen, depth, &span, bins);
+        self.members(held).count(f, w, seen, depth, &span, bins);
         Counted { seen, held }
     }
 
@@ -354,6 +349,16 @@ impl<const B: usize> PixelState<B> {
         }
     }
 
+    /// The footprints held aside, or the open group's.
+    #[inline(always)]
+    fn members(&mut self, held: bool) -> &mut Members<B> {
+        if held {
+            &mut self.held
+        } else {
+            &mut self.group
+        }
+    }
+
     /// Add `change` to the colour of the footprint just added (its colour's change along a
     /// streak, weighted by its light there), as emission when it is `additive`; `counted` is what
     /// [`Self::add`] returned for it, which weights its colour as it weighted the rest.
@@ -362,11 +367,7 @@ impl<const B: usize> PixelState<B> {
         if counted.seen == 0.0 {
             return;
         }
-        let members = if counted.held {
-            &mut self.held
-        } else {
-            &mut self.group
-        };
+        let members = self.members(counted.held);
         let (sums, scale) = if additive {
             (&mut members.emission, 1.0)
         } else {
@@ -467,7 +468,7 @@ impl<const B: usize> PixelState<B> {
     /// and the depth of its visible surface.
     pub(super) fn finish(&mut self, bins: &TimeBins<B>) -> ([f32; 3], f32, f32) {
         self.close_group(bins);
-        if self.held.bins[0] < self.held.bins[1] {
+        if self.held.counts_any() {
             // Faint footprints behind the last group, with none after them to join.
             self.group = self.held;
             self.close_group(bins);
@@ -486,6 +487,11 @@ impl<const B: usize> Members<B> {
         whole_bins: [0.0; B],
         bins: [B, 0],
     };
+
+    /// Whether any footprint was counted since the sums were last emptied.
+    fn counts_any(&self) -> bool {
+        self.bins[0] < self.bins[1]
+    }
 
     /// Empty the sums but for the coverage and its marks, which closing the group left empty
     /// (they are the most to write).

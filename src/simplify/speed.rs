@@ -2,11 +2,11 @@
 //! Appendix B): a triangle whose projected perimeter is below σ₁ v + σ₂ pixels (v the screen
 //! speed in px per shutter) shows no detail the blur keeps, so each vertex gets a detail limit:
 //! that perimeter, capped (measured, the blur does not hide more at higher speeds), in object
-//! units. The limit is conservative over the shutter: the scale is
-//! the largest (nearest) the vertex has on screen at any sampled time, as Appendix B takes the
-//! nearest position; the speed is the length of its screen path. Each vertex also gets its
-//! screen motion, lifted back to object space (its component along the view axis dropped), to
-//! weight edge costs by their angle to the motion (§4) when the object turns.
+//! units. The limit is conservative over the shutter: the scale is the largest (nearest) the
+//! vertex has on screen at any sampled time, as Appendix B takes the nearest position; the speed
+//! is the length of its screen path. Each vertex also gets its screen motion, lifted back to
+//! object space (its component along the view axis dropped), to weight edge costs by their angle
+//! to the motion (§4) when the object turns.
 //!
 //! Simplified meshes are kept in a small process-wide cache keyed by the mesh and the limits
 //! (quantized to quarter octaves, downwards), so a study's repeats and a gallery's methods
@@ -40,8 +40,8 @@ pub const ZHANG_SIGMA_BASE: f64 = 0.36;
 /// The longest projected perimeter, px, the plan lets a triangle reach however fast it moves,
 /// unless a scene says otherwise. Measured, ꟻLIP against full detail grows with the perimeter
 /// kept and not less at higher speed: σ₁ v + σ₂ alone took the armadillo at 270 px per shutter
-/// to 190 faces and ꟻLIP 0.074; at 45 px it keeps 858 and 0.039 (docs/math.md, "Mesh level of
-/// detail").
+/// to 190 faces and ꟻLIP 0.074; capped at 45 px it keeps 800 and 0.039 (docs/math.md, "Mesh
+/// level of detail"; `cargo bench --features cli --bench mesh_lod -- 320 0.5 270`).
 pub const DEFAULT_MAX_PERIMETER_PX: f64 = 45.0;
 
 /// Times sampled over the shutter for each vertex's screen path.
