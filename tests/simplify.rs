@@ -47,16 +47,20 @@ fn grid(n: u32) -> Mesh {
             ));
         }
     }
-    let at = |i: u32, j: u32| j * (n + 1) + i;
-    for j in 0..n {
-        for i in 0..n {
+    quads(&mut mesh, [n, n], |i, j| j * (n + 1) + i);
+    mesh
+}
+
+/// Two triangles for each of `columns` × `rows` quads, whose corner (i, j) is vertex `at(i, j)`.
+fn quads(mesh: &mut Mesh, [columns, rows]: [u32; 2], at: impl Fn(u32, u32) -> u32) {
+    for j in 0..rows {
+        for i in 0..columns {
             mesh.triangles
                 .push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
             mesh.triangles
                 .push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
         }
     }
-    mesh
 }
 
 /// The cube [−1, 1]³, each side an `n` × `n` grid, wound outwards, vertices shared.
@@ -271,15 +275,7 @@ fn tube(around: u32, rings: u32) -> Mesh {
                 .push(DVec3::new(angle.cos(), angle.sin(), step * f64::from(j)));
         }
     }
-    let at = |i: u32, j: u32| j * around + i % around;
-    for j in 0..rings {
-        for i in 0..around {
-            mesh.triangles
-                .push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-            mesh.triangles
-                .push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
+    quads(&mut mesh, [around, rings], |i, j| j * around + i % around);
     mesh
 }
 
