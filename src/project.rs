@@ -274,7 +274,8 @@ const SURFEL_CHUNK: usize = 1024;
 /// with hundreds of sub-segments per surfel, most of them off screen, collecting every result
 /// first would cost gigabytes. The chunks go straight into `out`, each copied by the thread
 /// that is free, into its own stretch: copied in turn on one thread, they took 3 ms of the knot's
-/// 46 ms `static` render at 1024² (docs/history.md, "Footprints gathered in parallel").
+/// 46 ms `static` render at 1024² (docs/history.md, "Footprints gathered in parallel, and
+/// x86-64-v2").
 pub fn per_surfel(
     count: usize,
     out: &mut Vec<Footprint>,
