@@ -416,13 +416,7 @@ impl Scene {
                 return Err(Error::invalid(field, format!("{v}: must not be negative")));
             }
         }
-        let cap = rule.max_perimeter_px;
-        if !(finite("max_perimeter", cap)? > 0.0) {
-            return Err(Error::invalid(
-                "max_perimeter",
-                format!("{cap}: must be a positive number of px"),
-            ));
-        }
+        positive("max_perimeter", rule.max_perimeter_px)?;
         self.mesh_detail = rule;
         Ok(self)
     }

@@ -29,7 +29,7 @@ use crate::surfels::Mesh;
 pub const ZHANG_SIGMA_SPEED: f64 = 7.3;
 
 /// The σ₁ the plan uses unless a scene says otherwise: Zhang's 7.3, with v in px per shutter,
-/// took the armadillo to 4 faces at 30 px per shutter (ꟻLIP 0.15 against full detail); 0.5
+/// took the armadillo to 14 faces at 30 px per shutter (ꟻLIP 0.115 against full detail); 0.5
 /// keeps ꟻLIP at 0.033 at 90 px per shutter with a 13× faster `analytic` (docs/math.md, "Mesh
 /// level of detail"; `cargo bench --bench mesh_lod`).
 pub const DEFAULT_SIGMA_SPEED: f64 = 0.5;
