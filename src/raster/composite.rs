@@ -418,8 +418,9 @@ impl<const B: usize> PixelState<B> {
         if group.weight > 0.0 {
             // One bin (an instant) has no run of whole bins to mark and no other bin to spill
             // into. Unspilled coverage beyond full is as opaque as full: its excess is left.
-            if B > 1 && group.settle_whole_bins(bins) {
-                group.spill_overflow(bins);
+            if B > 1 {
+                let overflow = group.settle_whole_bins(bins);
+                group.spill_overflow(overflow, bins);
             }
             let mut visible = 0.0;
             for b in first..last {
@@ -559,11 +560,10 @@ impl<const B: usize> Members<B> {
     }
 
     /// Add to each bin of the group the coverage its marks in `whole_bins` stand for
-    /// (their running sum times the bin's mass), and clear the marks. Returns whether some bin
-    /// then holds more than full coverage that [`Self::spill_overflow`] can move: its first
-    /// round's test, in the same loop and order, so that a group with nothing to spill (most)
-    /// reads its bins once less.
-    fn settle_whole_bins(&mut self, bins: &TimeBins<B>) -> bool {
+    /// (their running sum times the bin's mass), and clear the marks. Returns the bins' tally of
+    /// coverage beyond full and held in bins not full, with which [`Self::spill_overflow`] starts,
+    /// so that a group with nothing to spill reads its bins once only.
+    fn settle_whole_bins(&mut self, bins: &TimeBins<B>) -> Overflow {
         let [first, last] = self.bins;
         let (mut per_mass, mut largest) = (0.0f32, 0.0f32);
         let mut overflow = Overflow::default();
@@ -580,7 +580,7 @@ impl<const B: usize> Members<B> {
             self.coverage[b] += per_mass * mass;
             overflow.count(self.coverage[b], mass);
         }
-        overflow.spills()
+        overflow
     }
 
     /// Move the group's coverage beyond full in some bins into its bins that are not full, in
@@ -590,25 +590,30 @@ impl<const B: usize> Members<B> {
     /// surfels pass mid-chord get too much (up to 1.4×) and those at the chords' ends too little
     /// (0.3×). Clipped bin by bin, 20 % of the background showed through a sliding sphere; the
     /// total is right, only its spread in time is not.
-    fn spill_overflow(&mut self, bins: &TimeBins<B>) {
+    ///
+    /// `overflow` is the tally of the bins as they are. Each round clips the bins beyond full,
+    /// scales those not full by what the tally says, and tallies the result for the next round,
+    /// in one pass. A bin clipped after the last round was beyond full, which is as opaque as
+    /// full ([`opacity`] of either is 1).
+    fn spill_overflow(&mut self, mut overflow: Overflow, bins: &TimeBins<B>) {
         let [first, last] = self.bins;
         let coverages = &mut self.coverage[first..last];
         let masses = &bins.mass[first..last];
         // Each round fills at least one more bin or places all the excess: at most B rounds.
         for _ in 0..B {
-            let mut overflow = Overflow::default();
-            for (coverage, &mass) in coverages.iter_mut().zip(masses) {
-                if overflow.count(*coverage, mass) {
-                    *coverage = mass;
-                }
-            }
             if !overflow.spills() {
                 return;
             }
             let scale = 1.0 + overflow.excess / overflow.held;
+            overflow = Overflow::default();
             for (coverage, &mass) in coverages.iter_mut().zip(masses) {
-                if *coverage < mass {
+                if *coverage > mass {
+                    *coverage = mass;
+                } else if *coverage < mass {
                     *coverage *= scale;
+                }
+                if overflow.count(*coverage, mass) {
+                    *coverage = mass;
                 }
             }
         }
