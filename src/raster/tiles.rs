@@ -72,27 +72,12 @@ impl TileGrid {
         ]
     }
 
-    /// Puts every value of every tile's block into the image's rows, in parallel: `rows` yields
-    /// one sink per image row, top to bottom, and `put(sink, x, value)` stores the value of column
-    /// `x`. A block holds its tile's pixels row by row.
-    pub(crate) fn scatter<T: Sync, R: Send>(
-        &self,
-        blocks: &[Vec<T>],
-        rows: impl IndexedParallelIterator<Item = R>,
-        put: impl Fn(&mut R, usize, &T) + Sync,
-    ) {
-        rows.enumerate().for_each(|(y, mut row)| {
-            let ty = y / self.tile_px as usize;
-            let first = ty * self.tiles_x;
-            for (tile, block) in (first..).zip(&blocks[first..first + self.tiles_x]) {
-                let [x0, y0, x1, _] = self.pixels(tile);
-                let w = (x1 - x0) as usize;
-                let start = (y - y0 as usize) * w;
-                for (i, value) in block[start..start + w].iter().enumerate() {
-                    put(&mut row, x0 as usize + i, value);
-                }
-            }
-        });
+    /// Where pixel `i` of `tile`'s block (its pixels row by row) lies in the band of its row of
+    /// tiles: the [`Self::band_len`] pixels of the image's rows from the tile row's top.
+    pub(crate) fn in_band(&self, tile: usize, i: usize) -> usize {
+        let [x0, _, x1, _] = self.pixels(tile);
+        let w = (x1 - x0) as usize;
+        (i / w) * self.width as usize + x0 as usize + i % w
     }
 }
 
@@ -261,9 +246,13 @@ mod tests {
             .enumerate()
             .all(|(i, &(row, twice))| row == i && twice == 2 * i));
         let mut image = vec![usize::MAX; 800];
-        grid.scatter(&blocks, image.par_chunks_mut(40), |row, x, &value| {
-            row[x] = value
-        });
+        for (ty, band) in image.chunks_mut(grid.band_len()).enumerate() {
+            for tile in grid.row(ty) {
+                for (i, &value) in blocks[tile].iter().enumerate() {
+                    band[grid.in_band(tile, i)] = value;
+                }
+            }
+        }
         assert!(image.iter().enumerate().all(|(i, &v)| v == i));
     }
 }

@@ -240,38 +240,41 @@ pub(super) fn render(
                     .map(|&t| instant_layer(scene, plan, t, &mut Stats::default()).front_depth)
                     .collect()
             });
-        let results: Vec<TileResult> = (0..grid.count())
-            .into_par_iter()
-            .with_max_len(1)
-            .map(|tile| {
+        // Each row of tiles adds its pixels into its own band of the sums as its tiles are
+        // resolved: collected for the whole image first, the tiles' results doubled the render's
+        // peak memory (docs/history.md, "`kernel3d` adds each tile into the image").
+        let bands: Vec<&mut [Resolved]> = sums.chunks_mut(grid.band_len()).collect();
+        let rows = lists.by_rows_costliest_first(&grid, bands, |ty, band| {
+            let mut row = TileResult::default();
+            for tile in grid.row(ty) {
                 let work = TileWork {
                     kernels: &kernels,
                     bounds: &bounds,
                     list: lists.list(tile),
                 };
-                resolve_tile(
+                let result = resolve_tile(
                     scene,
                     &work,
                     grid.pixels(tile),
                     &windows[first..last],
                     visible_depth.as_deref(),
-                )
-            })
-            .collect();
-        let mut blocks = Vec::with_capacity(results.len());
-        for tile in results {
-            kernel3d.fragments += tile.fragments;
-            kernel3d.resolved_fragments += tile.resolved_fragments;
-            kernel3d.peak_fragments_per_pixel =
-                kernel3d.peak_fragments_per_pixel.max(tile.peak_pixel);
-            kernel3d.peak_fragments_held = kernel3d.peak_fragments_held.max(tile.peak_held);
-            kernel3d.merged_pixels += tile.merged;
-            kernel3d.widened_pixels += tile.widened;
-            blocks.push(tile.resolved);
-        }
-        grid.scatter(&blocks, sums.par_chunks_mut(width as usize), |row, x, r| {
-            row[x].add(r);
+                );
+                for (i, resolved) in result.resolved.iter().enumerate() {
+                    band[grid.in_band(tile, i)].add(resolved);
+                }
+                row.count(&result);
+            }
+            row
         });
+        for row in rows {
+            kernel3d.fragments += row.fragments;
+            kernel3d.resolved_fragments += row.resolved_fragments;
+            kernel3d.peak_fragments_per_pixel =
+                kernel3d.peak_fragments_per_pixel.max(row.peak_pixel);
+            kernel3d.peak_fragments_held = kernel3d.peak_fragments_held.max(row.peak_held);
+            kernel3d.merged_pixels += row.merged;
+            kernel3d.widened_pixels += row.widened;
+        }
         kernel3d.passes += 1;
         kernel3d.peak_kernels = kernel3d.peak_kernels.max(kernels.len());
     }
@@ -607,4 +610,16 @@ struct TileResult {
     /// Pixels whose fragments were merged, and of those, with the depth tolerance widened.
     merged: usize,
     widened: usize,
+}
+
+impl TileResult {
+    /// Add what `tile` took to these counts (not its pixels).
+    fn count(&mut self, tile: &TileResult) {
+        self.fragments += tile.fragments;
+        self.resolved_fragments += tile.resolved_fragments;
+        self.peak_pixel = self.peak_pixel.max(tile.peak_pixel);
+        self.peak_held = self.peak_held.max(tile.peak_held);
+        self.merged += tile.merged;
+        self.widened += tile.widened;
+    }
 }

@@ -619,7 +619,7 @@ impl<'a> Prepared<'a> {
         let grid = TileGrid::new(width, height);
         let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
-        let band = width as usize * TILE_PX as usize;
+        let band = grid.band_len();
         // Every pixel is written by its tile: zeroed pages the OS hands out untouched, so the
         // first touch happens in the parallel pass.
         let mut image = Framebuffer::filled(width, height, [0.0; 3]);
@@ -640,12 +640,8 @@ impl<'a> Prepared<'a> {
                 for tile in grid.row(ty) {
                     let bounds = grid.pixels(tile);
                     self.render_tile(lists.list(tile), bounds, &offsets, scratch, &mut stats);
-                    let [x0, y0, x1, _] = bounds;
-                    let w = (x1 - x0) as usize;
                     for (i, (colour, hide)) in scratch.pixels.iter().enumerate() {
-                        let at = (i / w + (y0 - ty as u32 * TILE_PX) as usize) * width as usize
-                            + x0 as usize
-                            + i % w;
+                        let at = grid.in_band(tile, i);
                         pixels[at] = *colour;
                         if let Some(hidden) = &mut hidden {
                             hidden[at] = *hide;
