@@ -650,32 +650,13 @@ pub struct Layer {
 }
 
 impl Layer {
-    /// A clear `width` × `height` layer: adds nothing, hides nothing.
-    #[must_use]
-    pub fn clear(width: u32, height: u32) -> Layer {
-        let size = width as usize * height as usize;
-        Layer {
-            width,
-            height,
-            colour: vec![[0.0; 3]; size],
-            transmittance: vec![1.0; size],
-            front_depth: vec![f32::INFINITY; size],
-        }
-    }
-
-    /// The layer over `below`, an image of the same size.
-    #[must_use]
-    pub fn over(&self, below: &Framebuffer) -> Framebuffer {
-        let pixels = (self.colour.par_iter())
+    /// Draw the layer over `image`, of the same size, in place (a new image for each layer would
+    /// hold two at once).
+    pub fn draw_over(&self, image: &mut Framebuffer) {
+        (image.pixels.par_iter_mut())
+            .zip(&self.colour)
             .zip(&self.transmittance)
-            .zip(&below.pixels)
-            .map(|((&c, &t), &b)| over(c, t, b))
-            .collect();
-        Framebuffer {
-            width: self.width,
-            height: self.height,
-            pixels,
-        }
+            .for_each(|((b, &c), &t)| *b = over(c, t, *b));
     }
 
     /// The layer with its opacity scaled by `opacity` in [0, 1].
@@ -801,7 +782,7 @@ fn rasterize_over_grid<const B: usize>(
 
 /// A premultiplied `colour` with `transmittance` over `behind`.
 #[inline]
-fn over(colour: [f32; 3], transmittance: f32, behind: [f32; 3]) -> [f32; 3] {
+pub(crate) fn over(colour: [f32; 3], transmittance: f32, behind: [f32; 3]) -> [f32; 3] {
     [0, 1, 2].map(|k| colour[k] + transmittance * behind[k])
 }
 

@@ -244,26 +244,28 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         .collect();
     hint.speed_lines = lines.len();
     let look = &style.speed_lines;
-    let line_layer = speed_lines::draw(
-        &lines,
-        &LineLook {
+    let draw_lines = |image: &mut Framebuffer| {
+        let look = LineLook {
             width: look.width,
             taper: look.taper,
             fade: look.fade,
             opacity: look.opacity,
-        },
-        width,
-        height,
-    );
+        };
+        speed_lines::draw_over(&lines, &look, image);
+    };
 
     let drawn_layer = if style.object.draw {
         object_layer
     } else {
+        // Not needed past the emitters: one layer less held while the stills are drawn.
+        drop(object_layer);
         let (layer, raster) = rasterize(&object_footprints[..stills], &target, &TimeBins::INSTANT);
         stats.add_raster(&raster);
         layer
     }
     .with_opacity(style.object.opacity as f32);
+    // Each layer is made when it is drawn over the image, and dropped after: the image holds
+    // at most the object's layer and one other besides itself.
     let mut image = Framebuffer::filled(width, height, background);
     let mut trail_target = Target {
         texture: trail.texture.as_ref(),
@@ -273,17 +275,18 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         Composite::Under => {
             let (layer, raster) = draw_trails(&trail_footprints, &trail_target, trail);
             stats.add_raster(&raster);
-            image = layer.over(&image);
-            image = line_layer.over(&image);
-            image = drawn_layer.over(&image);
+            layer.draw_over(&mut image);
+            drop(layer);
+            draw_lines(&mut image);
+            drawn_layer.draw_over(&mut image);
         }
         Composite::Merged => {
-            image = line_layer.over(&image);
-            image = drawn_layer.over(&image);
+            draw_lines(&mut image);
+            drawn_layer.draw_over(&mut image);
             trail_target.occluder = Some(&drawn_layer.front_depth);
             let (layer, raster) = draw_trails(&trail_footprints, &trail_target, trail);
             stats.add_raster(&raster);
-            image = layer.over(&image);
+            layer.draw_over(&mut image);
         }
     }
     stats.method = MethodStats::Hint(hint);

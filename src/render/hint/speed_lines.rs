@@ -8,8 +8,10 @@
 //! by arc length, and composite colour "over" the earlier lines in linear f32. Bad geometry
 //! draws nothing and never panics. Derivation and choices: docs/math.md, "Hint trails".
 
-use crate::raster::Layer;
+use crate::framebuffer::Framebuffer;
+use crate::raster::over;
 use glam::DVec2;
+use rayon::prelude::*;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
 
 /// One speed line: the projected path of a point, in pixels (x right, y down,
@@ -66,28 +68,20 @@ const MAX_ARC_STEPS: f64 = 64.0;
 /// half a pixel diagonal (≈ 0.71), rounded up.
 const AA_REACH_PX: f64 = 1.0;
 
-/// Draws `lines` into a new `width × height` layer, in slice order, each
-/// composited "over" the ones before it.
+/// Draws `lines` over `image`, in slice order, each composited "over" the ones before it, as
+/// one layer of strokes over the image (made at the image's size and dropped after: as a
+/// [`crate::raster::Layer`] of its own it had held both).
 ///
-/// Bad lines are skipped (see the module docs). If the strokes cannot be
-/// allocated, the layer is clear.
-#[must_use]
-pub fn draw(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Layer {
-    let strokes = strokes(lines, look, width, height);
-    let mut layer = Layer::clear(width, height);
-    for ((colour, transmittance), px) in layer
-        .colour
-        .iter_mut()
-        .zip(&mut layer.transmittance)
+/// Bad lines are skipped (see the module docs). If the strokes cannot be allocated, the image is
+/// left as it is.
+pub fn draw_over(lines: &[SpeedLine], look: &LineLook, image: &mut Framebuffer) {
+    let strokes = strokes(lines, look, image.width, image.height);
+    (image.pixels.par_iter_mut())
         .zip(&strokes.pixels)
-    {
-        *colour = [px[0], px[1], px[2]];
-        *transmittance = 1.0 - px[3];
-    }
-    layer
+        .for_each(|(behind, px)| *behind = over([px[0], px[1], px[2]], 1.0 - px[3], *behind));
 }
 
-/// The strokes of `lines`, as [`draw`] composites them. A zero-sized image gives empty strokes,
+/// The strokes of `lines`, as [`draw_over`] composites them. A zero-sized image gives empty strokes,
 /// and so does one whose strokes cannot be allocated (0 × 0).
 fn strokes(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Strokes {
     let mut layer = Strokes::transparent(width, height);
@@ -595,7 +589,6 @@ impl<'a> NearestSweep<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::framebuffer::Framebuffer;
 
     const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
 
@@ -834,9 +827,9 @@ mod tests {
         };
         let layer = strokes(std::slice::from_ref(&line), &look, 100, 100);
         let background = [0.2, 0.3, 0.4];
-        let image = draw(&[line], &look, 100, 100)
-            .over(&Framebuffer::filled(100, 100, background))
-            .pixels;
+        let mut image = Framebuffer::filled(100, 100, background);
+        draw_over(&[line], &look, &mut image);
+        let image = image.pixels;
         assert_eq!(image[10 * 100 + 50], background);
         for (got, want) in image[50 * 100 + 50].iter().zip(colour) {
             assert!((got - want).abs() < 1e-6);
