@@ -81,8 +81,8 @@ pub fn draw_over(lines: &[SpeedLine], look: &LineLook, image: &mut Framebuffer) 
         .for_each(|(behind, px)| *behind = over([px[0], px[1], px[2]], 1.0 - px[3], *behind));
 }
 
-/// The strokes of `lines`, as [`draw_over`] composites them. A zero-sized image gives empty strokes,
-/// and so does one whose strokes cannot be allocated (0 × 0).
+/// The strokes of `lines`, as [`draw_over`] composites them. A zero-sized image gives empty
+/// strokes, and so does one whose strokes cannot be allocated (0 × 0).
 fn strokes(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Strokes {
     let mut layer = Strokes::transparent(width, height);
     let Some(style) = Style::new(look) else {

@@ -241,39 +241,39 @@ pub(super) fn render(
                     .collect()
             });
         // Each row of tiles adds its pixels into its own band of the sums as its tiles are
-        // resolved: collected for the whole image first, the tiles' results doubled the render's
-        // peak memory (docs/history.md, "`kernel3d` adds each tile into the image").
+        // resolved: collected for the whole image first, the tiles' results held 32 bytes a
+        // pixel more (docs/history.md, "Peak memory of `kernel3d` and `hint` on large images").
         let bands: Vec<&mut [Resolved]> = sums.chunks_mut(grid.band_len()).collect();
         let rows = lists.by_rows_costliest_first(&grid, bands, |ty, band| {
-            let mut row = TileResult::default();
+            let mut tiles = Vec::with_capacity(grid.row(ty).len());
             for tile in grid.row(ty) {
                 let work = TileWork {
                     kernels: &kernels,
                     bounds: &bounds,
                     list: lists.list(tile),
                 };
-                let result = resolve_tile(
+                let mut result = resolve_tile(
                     scene,
                     &work,
                     grid.pixels(tile),
                     &windows[first..last],
                     visible_depth.as_deref(),
                 );
-                for (i, resolved) in result.resolved.iter().enumerate() {
+                for (i, resolved) in std::mem::take(&mut result.resolved).iter().enumerate() {
                     band[grid.in_band(tile, i)].add(resolved);
                 }
-                row.count(&result);
+                tiles.push(result);
             }
-            row
+            tiles
         });
-        for row in rows {
-            kernel3d.fragments += row.fragments;
-            kernel3d.resolved_fragments += row.resolved_fragments;
+        for tile in rows.into_iter().flatten() {
+            kernel3d.fragments += tile.fragments;
+            kernel3d.resolved_fragments += tile.resolved_fragments;
             kernel3d.peak_fragments_per_pixel =
-                kernel3d.peak_fragments_per_pixel.max(row.peak_pixel);
-            kernel3d.peak_fragments_held = kernel3d.peak_fragments_held.max(row.peak_held);
-            kernel3d.merged_pixels += row.merged;
-            kernel3d.widened_pixels += row.widened;
+                kernel3d.peak_fragments_per_pixel.max(tile.peak_pixel);
+            kernel3d.peak_fragments_held = kernel3d.peak_fragments_held.max(tile.peak_held);
+            kernel3d.merged_pixels += tile.merged;
+            kernel3d.widened_pixels += tile.widened;
         }
         kernel3d.passes += 1;
         kernel3d.peak_kernels = kernel3d.peak_kernels.max(kernels.len());
@@ -610,16 +610,4 @@ struct TileResult {
     /// Pixels whose fragments were merged, and of those, with the depth tolerance widened.
     merged: usize,
     widened: usize,
-}
-
-impl TileResult {
-    /// Add what `tile` took to these counts (not its pixels).
-    fn count(&mut self, tile: &TileResult) {
-        self.fragments += tile.fragments;
-        self.resolved_fragments += tile.resolved_fragments;
-        self.peak_pixel = self.peak_pixel.max(tile.peak_pixel);
-        self.peak_held = self.peak_held.max(tile.peak_held);
-        self.merged += tile.merged;
-        self.widened += tile.widened;
-    }
 }
