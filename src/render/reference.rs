@@ -10,6 +10,7 @@ use crate::plan::{ObjectMotion, Plan};
 use crate::project::object_footprints_at;
 use crate::raster::TimeBins;
 use crate::scene::Scene;
+use rayon::prelude::*;
 
 /// What the reference did beyond the shared counts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -76,11 +77,12 @@ pub(super) fn render(
             &TimeBins::INSTANT,
             &mut stats,
         );
-        for (acc, p) in sum.iter_mut().zip(&frame.pixels) {
+        // Each pixel adds its own frames in order, so the sum does not depend on the threads.
+        sum.par_iter_mut().zip(&frame.pixels).for_each(|(acc, p)| {
             for c in 0..3 {
                 acc[c] += mass * f64::from(p[c]);
             }
-        }
+        });
         if let Some(progress) = progress {
             progress();
         }
