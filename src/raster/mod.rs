@@ -797,7 +797,6 @@ fn tile_pass<const B: usize, T: Send>(
     bands: impl IndexedParallelIterator<Item = T>,
     write: impl Fn(&mut T, usize, usize, ([f32; 3], f32, f32)) + Sync,
 ) -> RasterStats {
-    let width = target.width as usize;
     // Binned in footprint order; each tile sorts its own list by depth (docs/architecture.md,
     // "The rasterizer"): a global sort would leave every tile reading its footprints in random
     // memory order.
@@ -811,20 +810,22 @@ fn tile_pass<const B: usize, T: Send>(
         let mut scratch = TileScratch::default();
         let band_start = ty * grid.band_len();
         for tile in grid.row(ty) {
-            let bounds @ [x0, y0, x1, y1] = grid.pixels(tile);
             let list = lists.list(tile);
             let pixels: &mut [PixelState<B>] = if list.is_empty() {
                 &mut []
             } else {
-                render_tile(footprints, list, bounds, target, bins, &mut scratch)
+                render_tile(
+                    footprints,
+                    list,
+                    grid.pixels(tile),
+                    target,
+                    bins,
+                    &mut scratch,
+                )
             };
-            let w = (x1 - x0) as usize;
-            for r in 0..(y1 - y0) as usize {
-                let start = r * width + x0 as usize;
-                for i in 0..w {
-                    let finished = pixels.get_mut(r * w + i).map_or(clear, |p| p.finish(bins));
-                    write(&mut band, start + i, band_start + start + i, finished);
-                }
+            for (k, at) in grid.in_band(tile).enumerate() {
+                let finished = pixels.get_mut(k).map_or(clear, |p| p.finish(bins));
+                write(&mut band, at, band_start + at, finished);
             }
         }
     });

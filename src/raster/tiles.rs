@@ -72,12 +72,13 @@ impl TileGrid {
         ]
     }
 
-    /// Where pixel `i` of `tile`'s block (its pixels row by row) lies in the band of its row of
+    /// Where the pixels of `tile`'s block (its pixels row by row) lie in the band of its row of
     /// tiles: the [`Self::band_len`] pixels of the image's rows from the tile row's top.
-    pub(crate) fn in_band(&self, tile: usize, i: usize) -> usize {
-        let [x0, _, x1, _] = self.pixels(tile);
-        let w = (x1 - x0) as usize;
-        (i / w) * self.width as usize + x0 as usize + i % w
+    pub(crate) fn in_band(&self, tile: usize) -> impl Iterator<Item = usize> {
+        let [x0, y0, x1, y1] = self.pixels(tile);
+        let width = self.width as usize;
+        (0..(y1 - y0) as usize)
+            .flat_map(move |r| (x0 as usize..x1 as usize).map(move |x| r * width + x))
     }
 }
 
@@ -248,8 +249,8 @@ mod tests {
         let mut image = vec![usize::MAX; 800];
         for (ty, band) in image.chunks_mut(grid.band_len()).enumerate() {
             for tile in grid.row(ty) {
-                for (i, &value) in blocks[tile].iter().enumerate() {
-                    band[grid.in_band(tile, i)] = value;
+                for (at, &value) in grid.in_band(tile).zip(&blocks[tile]) {
+                    band[at] = value;
                 }
             }
         }

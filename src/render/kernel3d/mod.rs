@@ -259,9 +259,11 @@ pub(super) fn render(
                     &windows[first..last],
                     visible_depth.as_deref(),
                 );
-                for (i, resolved) in std::mem::take(&mut result.resolved).iter().enumerate() {
-                    band[grid.in_band(tile, i)].add(resolved);
+                for (at, resolved) in grid.in_band(tile).zip(&result.resolved) {
+                    band[at].add(resolved);
                 }
+                // Its counts are kept for the pass's totals, its pixels are in the sums.
+                result.resolved = Vec::new();
                 tiles.push(result);
             }
             tiles

@@ -640,8 +640,7 @@ impl<'a> Prepared<'a> {
                 for tile in grid.row(ty) {
                     let bounds = grid.pixels(tile);
                     self.render_tile(lists.list(tile), bounds, &offsets, scratch, &mut stats);
-                    for (i, (colour, hide)) in scratch.pixels.iter().enumerate() {
-                        let at = grid.in_band(tile, i);
+                    for (at, (colour, hide)) in grid.in_band(tile).zip(&scratch.pixels) {
                         pixels[at] = *colour;
                         if let Some(hidden) = &mut hidden {
                             hidden[at] = *hide;
