@@ -3,9 +3,11 @@
 //!
 //! The reference is the accumulation buffer at `reference_samples` frames (1024 by default),
 //! drawn at full detail (no level of detail), cached as linear EXR keyed by the scene text, image
-//! size and sample count. Each render is timed as the median of `repeats` runs of plan + render
-//! (scene loading and surfel sampling excluded, as they are shared by every method), after one
-//! untimed render. Times are only comparable within one run.
+//! size, spatial samples per pixel and frame count. Where triangles are drawn, `analytic` is also
+//! studied across its spatial samples per pixel, against a reference at the most a camera takes
+//! ([`SPATIAL_REFERENCE_SAMPLES`]). Each render is timed as the median of `repeats` runs of
+//! plan + render (scene loading and surfel sampling excluded, as they are shared by every
+//! method), after one untimed render. Times are only comparable within one run.
 
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
@@ -21,6 +23,7 @@ use crate::render::{
 use crate::scene::Scene;
 use crate::style::Style;
 use indicatif::ProgressBar;
+use std::borrow::Cow;
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -32,6 +35,21 @@ pub const BLUR_TOLERANCES_PX: [f64; 6] = [8.0, 4.0, 2.0, 1.0, 0.5, 0.25];
 /// Sub-segment tolerances `analytic` is studied at, px, on scenes with triangle objects (at the
 /// scene's spatial samples per pixel, which the converged reference shares).
 pub const ANALYTIC_TOLERANCES_PX: [f64; 4] = [1.0, 0.3, 0.1, 0.03];
+
+/// Spatial samples per pixel `analytic` is studied at on scenes with triangle objects (the
+/// n × n grids up to 4 × 4), at its default tolerance.
+pub const ANALYTIC_SPATIAL_SAMPLES: [u32; 4] = [1, 4, 9, 16];
+
+/// Spatial samples per pixel of the reference that [`ANALYTIC_SPATIAL_SAMPLES`] are measured
+/// against: the most a camera takes (8 × 8). It is drawn with as many samples per pixel in all as
+/// the converged reference (with the default 1024 frames at 4 samples, 64 frames at 64), so it
+/// costs about as much.
+pub const SPATIAL_REFERENCE_SAMPLES: u32 = 64;
+
+/// The series name of `analytic` across its spatial samples: it is measured against the
+/// reference at [`SPATIAL_REFERENCE_SAMPLES`], not the converged one, so equal-error lines leave
+/// it out.
+pub const SPATIAL_LABEL: &str = " across samples per pixel";
 
 /// Sub-frame counts and visibility modes of `kernel3d` studied.
 pub const KERNEL_SETTINGS: [(usize, Visibility); 7] = [
@@ -72,6 +90,9 @@ pub const FULL_DETAIL_SUBFRAMES: [usize; 2] = [4, 8];
 struct Setting {
     method: Method,
     lod: Lod,
+    /// Spatial samples per pixel in place of the scene's, measured against the reference at
+    /// [`SPATIAL_REFERENCE_SAMPLES`].
+    spatial_samples: Option<u32>,
 }
 
 impl Setting {
@@ -80,6 +101,15 @@ impl Setting {
         Setting {
             method,
             lod: Lod::Auto,
+            spatial_samples: None,
+        }
+    }
+
+    /// `method` at full detail (`--lod off`).
+    fn full_detail(method: Method) -> Setting {
+        Setting {
+            lod: Lod::Off,
+            ..Setting::auto(method)
         }
     }
 
@@ -88,6 +118,15 @@ impl Setting {
         match self.lod {
             Lod::Off => label + full_detail,
             _ => label,
+        }
+    }
+
+    /// `label` of this setting, after its spatial samples (`prefix`, then the count) if it sets
+    /// them.
+    fn with_spatial(&self, label: String, prefix: &str, separator: &str) -> String {
+        match self.spatial_samples {
+            Some(samples) => format!("{prefix}{samples}{separator}{label}"),
+            None => label,
         }
     }
 
@@ -103,7 +142,7 @@ impl Setting {
                 receivers,
             } => format!("τ={tolerance_px}px{}", traced(*receivers, " traced")),
         };
-        self.with_lod(knob, " lod=off")
+        self.with_spatial(self.with_lod(knob, " lod=off"), "S=", " ")
     }
 
     /// `kernel3d`'s sub-frames (or `plan`) after `prefix`, and `approximate` in the GPU mode.
@@ -134,7 +173,11 @@ impl Setting {
             } => format!("{} approx", self.method.name()),
             method => method.name().to_string(),
         };
-        self.with_lod(series, FULL_DETAIL_LABEL)
+        let series = self.with_lod(series, FULL_DETAIL_LABEL);
+        match self.spatial_samples {
+            Some(_) => series + SPATIAL_LABEL,
+            None => series,
+        }
     }
 
     fn file_stem(&self) -> String {
@@ -152,7 +195,7 @@ impl Setting {
                 traced(*receivers, "-traced")
             ),
         };
-        self.with_lod(stem, "-lod-off")
+        self.with_spatial(self.with_lod(stem, "-lod-off"), "spp", "-")
     }
 }
 
@@ -193,12 +236,17 @@ pub fn converged_reference(
                 text,
                 scene.camera.width,
                 scene.camera.height,
+                scene.camera.spatial_samples,
                 samples,
                 "full detail",
                 env!("CARGO_PKG_VERSION"),
             )
                 .hash(&mut hasher);
-            Some(cache_dir.join(format!("reference-{samples}-{:016x}.exr", hasher.finish())))
+            Some(cache_dir.join(format!(
+                "reference-{samples}-{}spp-{:016x}.exr",
+                scene.camera.spatial_samples,
+                hasher.finish()
+            )))
         }
         None => None,
     };
@@ -259,12 +307,9 @@ pub fn run(
             .iter()
             .map(|&tolerance_px| Setting::auto(Method::Blur { tolerance_px })),
     );
-    setups.push(Setting {
-        method: Method::Blur {
-            tolerance_px: FULL_DETAIL_BLUR_PX,
-        },
-        lod: Lod::Off,
-    });
+    setups.push(Setting::full_detail(Method::Blur {
+        tolerance_px: FULL_DETAIL_BLUR_PX,
+    }));
     let styles = if options.styles.is_empty() {
         vec![Arc::new(Style::default())]
     } else {
@@ -284,13 +329,10 @@ pub fn run(
         }));
     }
     for subframes in FULL_DETAIL_SUBFRAMES {
-        setups.push(Setting {
-            method: Method::Kernel3d {
-                subframes: Subframes::Equal(subframes),
-                visibility: Visibility::Exact,
-            },
-            lod: Lod::Off,
-        });
+        setups.push(Setting::full_detail(Method::Kernel3d {
+            subframes: Subframes::Equal(subframes),
+            visibility: Visibility::Exact,
+        }));
     }
     // Triangles drawn analytically, across the sub-segment tolerance (its only error in time).
     let has_meshes = scene.objects.iter().any(|o| o.mesh().is_some());
@@ -315,12 +357,11 @@ pub fn run(
     let triangles_full_detail =
         has_meshes && Plan::new(scene, &Method::ANALYTIC)?.simplifies_a_mesh();
     if triangles_full_detail {
-        setups.extend(ANALYTIC_TOLERANCES_PX.iter().map(|&tolerance_px| Setting {
-            method: Method::Analytic {
+        setups.extend(ANALYTIC_TOLERANCES_PX.iter().map(|&tolerance_px| {
+            Setting::full_detail(Method::Analytic {
                 tolerance_px,
                 receivers: Receivers::Sampled,
-            },
-            lod: Lod::Off,
+            })
         }));
     }
     let lods: &[Lod] = if triangles_full_detail {
@@ -332,12 +373,45 @@ pub fn run(
         let mut n = 1;
         while n <= options.max_samples {
             setups.push(Setting {
-                method: Method::Reference { samples: n },
                 lod,
+                ..Setting::auto(Method::Reference { samples: n })
             });
             n *= 2;
         }
     }
+    // Spatial samples per pixel are `analytic`'s other knob (its only error in space): measured
+    // against a reference at SPATIAL_REFERENCE_SAMPLES.
+    let spatial_reference = if has_meshes {
+        let spatial = at_spatial_samples(scene, SPATIAL_REFERENCE_SAMPLES)?;
+        let samples_per_pixel = options.reference_samples * scene.camera.spatial_samples as usize;
+        let frames = (samples_per_pixel / SPATIAL_REFERENCE_SAMPLES as usize).max(1);
+        if let Some(bar) = progress {
+            bar.set_length(frames as u64);
+            bar.set_position(0);
+            bar.set_message(format!(
+                "reference at {SPATIAL_REFERENCE_SAMPLES} samples per pixel"
+            ));
+        }
+        let image =
+            converged_reference(&spatial, frames, &options.out_dir.join("cache"), progress)?;
+        write_png(
+            &image,
+            &options.out_dir.join(format!(
+                "converged-n{frames}-spp{SPATIAL_REFERENCE_SAMPLES}.png"
+            )),
+        )?;
+        // At full detail where a mesh would be simplified, as the reference is: the series is
+        // about samples, and the simplification's error would drown them.
+        let lod = lods[lods.len() - 1];
+        setups.extend(ANALYTIC_SPATIAL_SAMPLES.iter().map(|&samples| Setting {
+            lod,
+            spatial_samples: Some(samples),
+            ..Setting::auto(Method::ANALYTIC)
+        }));
+        Some(image)
+    } else {
+        None
+    };
 
     if let Some(bar) = progress {
         bar.set_length(setups.len() as u64);
@@ -352,10 +426,16 @@ pub fn run(
         if let Some(bar) = progress {
             bar.set_message(format!("{} {}", setting.method.name(), setting.knob()));
         }
-        let (first, first_time) = timed(scene, setting)?;
+        let (scene, reference) = match (setting.spatial_samples, &spatial_reference) {
+            (Some(samples), Some(spatial)) => {
+                (Cow::Owned(at_spatial_samples(scene, samples)?), spatial)
+            }
+            _ => (Cow::Borrowed(scene), &reference),
+        };
+        let (first, first_time) = timed(&scene, setting)?;
         let mut times = vec![first_time];
         for _ in 1..options.repeats {
-            times.push(timed(scene, setting)?.1);
+            times.push(timed(&scene, setting)?.1);
         }
         write_png(
             &first.image,
@@ -365,13 +445,20 @@ pub fn run(
             method: setting.series(),
             knob: setting.knob(),
             seconds: median(times),
-            error: compare(&first.image, &reference)?,
+            error: compare(&first.image, reference)?,
         });
         if let Some(bar) = progress {
             bar.inc(1);
         }
     }
     Ok(points)
+}
+
+/// `scene` with `samples` spatial samples per pixel where triangles are drawn.
+fn at_spatial_samples(scene: &Scene, samples: u32) -> Result<Scene> {
+    let mut scene = scene.clone();
+    scene.camera = scene.camera.with_spatial_samples(samples)?;
+    Ok(scene)
 }
 
 /// The first (smallest-N) point of the reference series `reference` at least as accurate as
@@ -424,7 +511,9 @@ pub fn equal_error(points: &[StudyPoint], method: &str) -> String {
             ),
         }
     };
-    for p in points.iter().filter(|p| p.method.starts_with(method)) {
+    let compared =
+        |p: &&StudyPoint| p.method.starts_with(method) && !p.method.ends_with(SPATIAL_LABEL);
+    for p in points.iter().filter(compared) {
         out.push_str(&format!(
             "- {} {} ({:.3} s): {}; {}\n",
             p.method,
