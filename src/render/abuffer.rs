@@ -650,8 +650,8 @@ impl Run {
 /// A fragment active in a piece: its depth there as a [`total_order_key`], its id and its index
 /// (a pixel holds at most [`MAX_FRAGMENTS_PER_PIXEL`]). Ordered as a tuple: nearest first, the id
 /// breaking ties (a total order, so the result does not depend on the order fragments arrived
-/// in). Sorting these integer keys took a third less time than sorting indices by a comparison
-/// that read the fragments (docs/history.md, "Sorting keys in the A-buffer").
+/// in). Sorted as integers, the sweep's sorts took about a third less time than sorting indices by
+/// a comparison that read the fragments (docs/history.md, "Sorting keys in the A-buffer").
 type Active = (i64, u32, u32);
 
 /// An integer whose order is `f64::total_cmp`'s (the standard library's own mapping: negative
