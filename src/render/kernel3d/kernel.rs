@@ -99,6 +99,8 @@ impl AffineKernel {
 pub(super) struct Prepared<'a> {
     kernel: &'a Kernel,
     normal: DVec3,
+    /// |normal|.
+    normal_length: f64,
     dual: [DVec3; 2],
     index: u32,
 }
@@ -260,6 +262,7 @@ impl Kernel {
         Prepared {
             kernel: self,
             normal,
+            normal_length: normal.length(),
             dual: [d1 / a1.dot(d1), d2 / a2.dot(d2)],
             index,
         }
@@ -270,7 +273,12 @@ impl Prepared<'_> {
     /// The fragment the kernel leaves on the camera-space ray with direction `ray` (z = −1, so
     /// the ray parameter is the depth) through the centre of pixel `pixel`, in front of `near`;
     /// `None` when the ray misses the kernel's cylinder.
-    pub fn fragment(&self, ray: DVec3, pixel: DVec2, near: f64) -> Option<Fragment> {
+    pub fn fragment(
+        &self,
+        (ray, ray_length): (DVec3, f64),
+        pixel: DVec2,
+        near: f64,
+    ) -> Option<Fragment> {
         let k = self.kernel;
         // `depth0 + s·depth1` is the depth the ternary test compares; `offset` is how far that
         // lies from the depth of the splat's centre, which decides the near plane.
@@ -307,7 +315,7 @@ impl Prepared<'_> {
             }
             None => {
                 let along = self.normal.dot(ray);
-                let cosine = along.abs() / (self.normal.length() * ray.length());
+                let cosine = along.abs() / (self.normal_length * ray_length);
                 if !(cosine > MIN_RAY_COSINE) {
                     return None;
                 }

@@ -472,12 +472,14 @@ fn resolve_tile(
     let camera = &scene.camera;
     let w = (x1 - x0) as usize;
     let centre = DVec2::new(f64::from(camera.width), f64::from(camera.height)) * 0.5;
+    // A pixel's ray and its length, worked out once a row for all the kernels that reach it.
     let ray = |x: u32, y: u32| {
-        DVec3::new(
+        let ray = DVec3::new(
             (f64::from(x) + 0.5 - centre.x) / camera.focal_px,
             -(f64::from(y) + 0.5 - centre.y) / camera.focal_px,
             -1.0,
-        )
+        );
+        (ray, ray.length())
     };
     let bins = SubFrameBins::new(windows);
     // The tile's kernels by the bin holding them (those spanning the pass last), in kernel order
@@ -520,6 +522,7 @@ fn resolve_tile(
     let mut sums = vec![Resolved::default(); w];
     // Fragments of `kernels` on row y added to `lists`, each compacted within `bins` when full.
     let make = |kernels: &[(usize, Prepared, [u32; 4])],
+                rays: &[(DVec3, f64)],
                 y: u32,
                 lists: &mut [(Vec<Fragment>, Option<Compaction>)],
                 bins: &SubFrameBins,
@@ -530,7 +533,7 @@ fn resolve_tile(
             }
             for x in x0.max(*bx0)..x1.min(*bx1) {
                 let pixel = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                let Some(f) = kernel.fragment(ray(x, y), pixel, camera.near) else {
+                let Some(f) = kernel.fragment(rays[(x - x0) as usize], pixel, camera.near) else {
                     continue;
                 };
                 out.fragments += 1;
@@ -538,10 +541,13 @@ fn resolve_tile(
             }
         }
     };
+    let mut rays = Vec::with_capacity(w);
     for y in y0..y1 {
-        make(group(bins.len()), y, &mut still, &pass, &mut out);
+        rays.clear();
+        rays.extend((x0..x1).map(|x| ray(x, y)));
+        make(group(bins.len()), &rays, y, &mut still, &pass, &mut out);
         for (b, bin) in each_bin.iter().enumerate() {
-            make(group(b), y, &mut pixels, bin, &mut out);
+            make(group(b), &rays, y, &mut pixels, bin, &mut out);
             let span = bins.span(b);
             for (pixel, (still, _)) in pixels.iter_mut().zip(&still) {
                 for f in still.iter().filter_map(|f| f.clipped(span)) {
