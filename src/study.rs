@@ -46,10 +46,11 @@ pub const ANALYTIC_SPATIAL_SAMPLES: [u32; 4] = [1, 4, 9, 16];
 /// costs about as much.
 pub const SPATIAL_REFERENCE_SAMPLES: u32 = 64;
 
-/// The series name of `analytic` across its spatial samples: it is measured against the
-/// reference at [`SPATIAL_REFERENCE_SAMPLES`], not the converged one, so equal-error lines leave
-/// it out.
-pub const SPATIAL_LABEL: &str = " across samples per pixel";
+/// After the series name of `analytic` across its spatial samples (the knob `S=` gives them): what
+/// it is measured against, the reference at [`SPATIAL_REFERENCE_SAMPLES`], since the plot's axis
+/// names the converged one. Short enough for the plot's legend. Equal-error lines leave the
+/// series out.
+pub const SPATIAL_LABEL: &str = " vs 64 samples/px";
 
 /// Sub-frame counts and visibility modes of `kernel3d` studied.
 pub const KERNEL_SETTINGS: [(usize, Visibility); 7] = [
