@@ -4,7 +4,8 @@
 //!
 //! `cargo bench --bench raster -- [SCENE] [METHOD] [SIZE] [REPEATS] [LOD]`, by default
 //! `gallery/torus_knot.toml static 1024 9 auto` (`LOD` is `auto` or `off`). Threads: `RAYON_NUM_THREADS`. Methods: `static`,
-//! `blur`, `kernel3d`, `analytic`, `reference:N`. Profile it with
+//! `blur`, `kernel3d`, `analytic` (its default tolerance, or `analytic:PX`), `reference:N`.
+//! Profile it with
 //! `perf record -g target/release/deps/raster-* gallery/torus_knot.toml static 1024 40`.
 
 mod common;
@@ -22,9 +23,18 @@ fn main() -> streak::Result<()> {
         "blur" => Method::BLUR,
         "kernel3d" => Method::KERNEL3D,
         "analytic" => Method::ANALYTIC,
-        other => match other.strip_prefix("reference:").map(str::parse) {
-            Some(Ok(samples)) => Method::Reference { samples },
-            _ => panic!("unknown method {other}: static, blur, kernel3d, analytic or reference:N"),
+        other => match (
+            other.strip_prefix("reference:").map(str::parse),
+            other.strip_prefix("analytic:").map(str::parse),
+        ) {
+            (Some(Ok(samples)), _) => Method::Reference { samples },
+            (_, Some(Ok(tolerance_px))) => Method::Analytic {
+                tolerance_px,
+                receivers: streak::render::Receivers::Sampled,
+            },
+            _ => panic!(
+                "unknown method {other}: static, blur, kernel3d, analytic, analytic:TOLERANCE_PX or reference:N"
+            ),
         },
     };
     let size: u32 = arg(2, "1024").parse().expect("SIZE is a number of pixels");
