@@ -1064,7 +1064,7 @@ impl<'a> Prepared<'a> {
                 let mut start = facing(&ends[0]);
                 for i in 0..run.len() {
                     let end = facing(&ends[i + 1]);
-                    let middle = facing(&ends[i].lerp(&ends[i + 1], 0.5));
+                    let middle = ends[i].facing_midway(&ends[i + 1], source);
                     away &= cut_where_turning([start, middle, end], [time(i), time(i + 1)], cuts);
                     start = end;
                 }
@@ -1966,6 +1966,15 @@ struct SurfacePoint {
 }
 
 impl SurfacePoint {
+    /// N·L for `source` halfway to `other`, the normal lerped and not made unit: with the values
+    /// at the two ends, what [`cut_where_turning`] fits its quadratic through.
+    fn facing_midway(&self, other: &SurfacePoint, source: &LightSource) -> f64 {
+        source.facing(
+            self.normal.lerp(other.normal, 0.5),
+            self.point.lerp(other.point, 0.5),
+        )
+    }
+
     /// Linear interpolation towards `other` by `u` (the normal normalized again).
     fn lerp(&self, other: &SurfacePoint, u: f64) -> SurfacePoint {
         SurfacePoint {
@@ -2684,6 +2693,67 @@ mod tests {
         let point = ScreenHull::new(&[DVec2::new(2.0, 3.0); 6]);
         assert_eq!(point.x_range(2.5, 3.5), Some([2.0, 2.0]));
         assert_eq!(point.x_range(3.5, 4.0), None);
+    }
+
+    #[test]
+    fn a_run_is_cut_where_its_pieces_turn_from_a_spot() {
+        // One piece of a run moving past a spot light while its normal turns from facing it to
+        // facing away: N·(S − P), the normal lerped and not made unit, is quadratic in u and
+        // its root is where the run's light must be cut. The middle value comes from the two
+        // ends alone, as the run's shading takes it.
+        let spot =
+            crate::scene::Spot::new(DVec3::new(0.0, 0.0, 3.0), DVec3::ZERO, 60.0, 1.0, false)
+                .unwrap();
+        let source = LightSource::Spot(&spot);
+        let end = |normal: DVec3, point: DVec3| SurfacePoint {
+            normal: normal.normalize(),
+            point,
+            albedo: [1.0; 3],
+        };
+        let (a, b) = (
+            end(DVec3::new(0.2, 0.0, 1.0), DVec3::new(-1.0, 0.0, 0.0)),
+            end(DVec3::new(1.0, 0.0, -0.3), DVec3::new(1.5, 0.0, 0.5)),
+        );
+        let exact = |u: f64| {
+            a.normal
+                .lerp(b.normal, u)
+                .dot(spot.position - a.point.lerp(b.point, u))
+        };
+        // Bisection on the exact quadratic, which changes sign once on [0, 1].
+        let (mut lo, mut hi) = (0.0, 1.0);
+        assert!(exact(lo) > 0.0 && exact(hi) < 0.0);
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            if exact(mid) > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let span = [0.1, 0.9];
+        let values = [
+            source.facing(a.normal, a.point),
+            a.facing_midway(&b, &source),
+            source.facing(b.normal, b.point),
+        ];
+        let mut cuts = Vec::new();
+        assert!(!cut_where_turning(values, span, &mut cuts));
+        assert_eq!(cuts.len(), 1, "{cuts:?}");
+        let expected = span[0] + lo * (span[1] - span[0]);
+        assert!(
+            (cuts[0] - expected).abs() < 1e-12,
+            "{cuts:?} against {expected}"
+        );
+        // The middle taken from a unit normal misses it.
+        let unit_middle = a.lerp(&b, 0.5);
+        let mut unit_cuts = Vec::new();
+        let unit_values = [
+            values[0],
+            source.facing(unit_middle.normal, unit_middle.point),
+            values[2],
+        ];
+        cut_where_turning(unit_values, span, &mut unit_cuts);
+        assert!((unit_cuts[0] - expected).abs() > 1e-3, "{unit_cuts:?}");
     }
 
     #[test]
