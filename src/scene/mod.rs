@@ -133,6 +133,37 @@ impl Spot {
         let x = ((along / distance - outer) / (inner - outer)).clamp(0.0, 1.0);
         self.intensity * x * x * (3.0 - 2.0 * x)
     }
+
+    /// Where the straight path from world point `p0` to `p1` crosses the cone's outer and inner
+    /// edges, as shares u ∈ (0, 1) of the way, each handed to `crossing`: between them the reach
+    /// ramps, a change a few points of a quadrature rule over the whole path would miss. On an
+    /// edge of cosine c, (p(u) − S)·a = c |p(u) − S|; squared, (a₀ + a₁u)² = c² |d₀ + u e|²,
+    /// quadratic in u, and only its roots on the light's side (a₀ + a₁u > 0) are the cone's.
+    pub fn cone_crossings(&self, [p0, p1]: [DVec3; 2], mut crossing: impl FnMut(f64)) {
+        let (d0, e) = (p0 - self.position, p1 - p0);
+        let (a0, a1) = (d0.dot(self.direction), e.dot(self.direction));
+        let (d1, a_end) = (p1 - self.position, a0 + a1);
+        for c in self.edge_cosines {
+            let c2 = c * c;
+            // A cone narrower than a half-space is convex: a path with both ends inside it lies
+            // inside all along (most paths, under the inner edge).
+            let inside =
+                |along: f64, d: DVec3| along > 0.0 && along * along >= c2 * d.length_squared();
+            if inside(a0, d0) && inside(a_end, d1) {
+                continue;
+            }
+            let (roots, n) = crate::math::quadratic_roots(
+                a1 * a1 - c2 * e.length_squared(),
+                2.0 * (a0 * a1 - c2 * d0.dot(e)),
+                a0 * a0 - c2 * d0.length_squared(),
+            );
+            for &u in &roots[..n] {
+                if u > 0.0 && u < 1.0 && a0 + a1 * u > 0.0 {
+                    crossing(u);
+                }
+            }
+        }
+    }
 }
 
 /// Texels per side of a shadow map unless the scene says otherwise.

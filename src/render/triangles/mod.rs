@@ -109,6 +109,26 @@ fn cut_where_turning([f0, fm, f1]: [f64; 3], span: [f64; 2], cuts: &mut Vec<f64>
     cuts.len() == before && f0.max(fm).max(f1) <= 0.0
 }
 
+/// Cut `span` where a point moving straight from `path[0]` to `path[1]` over it crosses the
+/// edges of a spot light's cone, between which its reach ramps
+/// ([`crate::scene::Spot::cone_crossings`]): a piece crossing the ramp in a small part of its
+/// time would otherwise be integrated by three Gauss–Legendre points that miss it.
+fn cut_at_cone_edges(source: &LightSource, path: [DVec3; 2], span: [f64; 2], cuts: &mut Vec<f64>) {
+    if let LightSource::Spot(spot) = source {
+        spot.cone_crossings(path, |u| cuts.push(span[0] + u * (span[1] - span[0])));
+    }
+}
+
+/// Cut `span` at the tent shutter's kink, where a Gauss–Legendre rule would lose its order.
+fn cut_at_shutter_kink(shutter: &crate::scene::Shutter, span: [f64; 2], cuts: &mut Vec<f64>) {
+    if shutter.shape == ShutterShape::Tent {
+        let middle = shutter.middle();
+        if middle > span[0] && middle < span[1] {
+            cuts.push(middle);
+        }
+    }
+}
+
 /// Each corner's straight path over the sub-segment [t0, t1], as its positions at the two ends
 /// (`positions_at` gives every corner's at a time): where the true path is straight, its chord;
 /// where it bends, the least-squares line through it over the sub-segment, found with three
@@ -1065,7 +1085,9 @@ impl<'a> Prepared<'a> {
                 for i in 0..run.len() {
                     let end = facing(&ends[i + 1]);
                     let middle = ends[i].facing_midway(&ends[i + 1], source);
-                    away &= cut_where_turning([start, middle, end], [time(i), time(i + 1)], cuts);
+                    let piece = [time(i), time(i + 1)];
+                    away &= cut_where_turning([start, middle, end], piece, cuts);
+                    cut_at_cone_edges(source, [ends[i].point, ends[i + 1].point], piece, cuts);
                     start = end;
                 }
                 if !source.shadows() {
@@ -1107,13 +1129,7 @@ impl<'a> Prepared<'a> {
             }
         }
         let shutter = &self.scene.shutter;
-        if shutter.shape == ShutterShape::Tent {
-            // The tent's kink, where a Gauss–Legendre rule would lose its order.
-            let middle = shutter.middle();
-            if middle > span[0] && middle < span[1] {
-                cuts.push(middle);
-            }
-        }
+        cut_at_shutter_kink(shutter, span, cuts);
         cuts.sort_unstable_by(f64::total_cmp);
         cuts.dedup();
         let mut sum = [0.0; 3];
@@ -1249,6 +1265,7 @@ impl<'a> Prepared<'a> {
                 let middle = 0.5 * (span[0] + span[1]);
                 let values = [facing(span[0]), facing(middle), facing(span[1])];
                 let away = cut_where_turning(values, span, cuts);
+                cut_at_cone_edges(source, [ends[0].1, ends[1].1], span, cuts);
                 if source.shadows() {
                     if let Some(((map, unshadowed), lit)) = maps.next() {
                         *lit = away || unshadowed || map.surely_lit(&receiver);
@@ -1278,6 +1295,7 @@ impl<'a> Prepared<'a> {
             }
         }
         stats.point_sampled += usize::from(point_sampled);
+        cut_at_shutter_kink(&self.scene.shutter, span, cuts);
         cuts.sort_unstable_by(f64::total_cmp);
         cuts.dedup();
         // The share of each shadow map's light reaching the receiver at t, in the order
@@ -1298,18 +1316,20 @@ impl<'a> Prepared<'a> {
         // at three Gauss–Legendre times each; a receiver point-sampled across texels by their
         // middles, which is the point sampling itself.
         if point_sampled {
-            // Each point sample shades the interpolated receiver at its time.
-            let albedo = self.albedo(item, &triangle, d, fraction(0.5 * (span[0] + span[1])));
-            let (mut sum, mut weight) = (0.0, 0.0);
+            // Each point sample shades the interpolated receiver at its time, its colour too.
+            let (mut sum, mut weight) = ([0.0; 3], 0.0);
             for pair in cuts.windows(2) {
                 let t = 0.5 * (pair[0] + pair[1]);
                 let w = (pair[1] - pair[0]) * self.scene.shutter.weight(t).max(1e-300);
                 let (normal, p) = surface_at(t);
-                sum += w * self.irradiance(normal, p, &visibility_at(t));
+                let light = w * self.irradiance(normal, p, &visibility_at(t));
+                let albedo = self.albedo(item, &triangle, d, fraction(t));
+                for c in 0..3 {
+                    sum[c] += light * albedo[c];
+                }
                 weight += w;
             }
-            let irradiance = if weight > 0.0 { sum / weight } else { 0.0 };
-            return albedo.map(|c| c * irradiance);
+            return sum.map(|c| if weight > 0.0 { c / weight } else { 0.0 });
         }
         let mut sum = [0.0; 3];
         let mut weight = 0.0;

@@ -201,6 +201,17 @@ impl Casters {
     }
 }
 
+/// The largest f32 at most `x`: a nearest depth rounded to the nearest f32 may lie beyond the
+/// occluder, and a receiver between the two would pass as surely lit.
+fn f32_at_most(x: f64) -> f32 {
+    let rounded = x as f32;
+    if f64::from(rounded) > x {
+        rounded.next_down()
+    } else {
+        rounded
+    }
+}
+
 /// An id no triangle has: [`Casters::none_but`] it holds where no occluder lies.
 pub const NO_TRIANGLE: (u32, u32) = (u32::MAX, u32::MAX);
 
@@ -225,7 +236,7 @@ impl Nearest {
         occluders
             .iter()
             .map(|o| Nearest {
-                depth: o.piece.depth[0].min(o.piece.depth[1]) as f32,
+                depth: f32_at_most(o.piece.depth[0].min(o.piece.depth[1])),
                 id: o.id,
                 others: f32::INFINITY,
             })
@@ -1098,6 +1109,20 @@ mod tests {
             assert!((closed - sum / weight).abs() < 1e-4, "{shape:?}: {closed}");
             assert!(closed > 0.75 && closed < 1.0, "{shape:?}: {closed}");
         }
+    }
+
+    #[test]
+    fn lit_for_sure_never_passes_an_occluder_nearer_than_the_limit() {
+        // An occluder at depth 1 + 10⁻⁷ in texel (8, 8) during [0.6, 0.8], whose nearest f32
+        // is 1.00000012: a receiver there whose limit lies between is shadowed at t = 0.7, so it
+        // must not pass as lit throughout.
+        let mut map = map_with_one_occluder();
+        let depth = 1.0 + 1e-7;
+        map.occluders.tiles[0].1[0].piece.depth = [depth, depth];
+        let map = ShadowMap::new(map.occluders).summarised();
+        let placed = (DVec2::new(8.0, 8.0), 1.0 + 1.1e-7);
+        assert_eq!(map.visibility_placed(placed, 0.7, (0, 0)), 0.0);
+        assert!(!map.surely_lit_between(placed, placed, [0.0, 1.0], (0, 0)));
     }
 
     #[test]
