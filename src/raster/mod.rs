@@ -572,6 +572,9 @@ trait Shape {
     /// How much its colour changes per unit along it, as a share of itself, where it changes
     /// (see [`Shape::value`]): `None` for an ellipse and for a streak whose colour is even.
     fn colour_slope(&self) -> Option<f32>;
+    /// The value below which the shape is faint at a pixel ([`composite::FAINT_VALUE`] of its
+    /// peak).
+    fn faint_below(&self) -> f32;
 }
 
 /// An elliptical footprint: its rows, conic and profile.
@@ -619,6 +622,10 @@ impl Shape for Ellipse<'_> {
 
     fn colour_slope(&self) -> Option<f32> {
         None
+    }
+
+    fn faint_below(&self) -> f32 {
+        composite::FAINT_VALUE * self.sampler.peak()
     }
 }
 
@@ -958,6 +965,7 @@ fn composite_footprint<const B: usize>(
     let w = (x1 - x0) as usize;
     let [_, fy0, _, fy1] = f.bounds;
     let colour_slope = shape.colour_slope();
+    let faint_below = shape.faint_below();
     for y in fy0.max(y0)..fy1.min(y1) {
         let row = (y - y0) as usize * w;
         let (sx0, sx1) = shape.span(y);
@@ -977,7 +985,7 @@ fn composite_footprint<const B: usize>(
             let (value, moment) = shape.value(row_shape, dx);
             let weight = f.amplitude * value;
             if weight > 0.0 {
-                let faint = value < composite::FAINT_VALUE;
+                let faint = value < faint_below;
                 let counted = state.add(f, weight, faint, [x, y], bins);
                 if let Some(slope) = colour_slope {
                     let change = f.colour_change_at(moment, slope);
@@ -1212,6 +1220,38 @@ mod tests {
         };
         assert!(footprints.iter().filter(|f| f.streak.is_some()).count() > 100);
         assert_eq!(bits(image(TILE_PX)), bits(image(LARGE_TILE_PX)));
+    }
+
+    #[test]
+    fn textured_footprints_in_time_bins_keep_their_depth_order() {
+        // Two wide textured splats over one pixel, red in front of green, composited in 32 bins
+        // as a textured trail is. A white texture is scaled to integrate to one, so its values are
+        // about 0.035 everywhere: measured against 1 rather than its own peak, every pixel was
+        // faint, no chain formed, and both joined one group (½ red, ½ green).
+        let texture = Texture::new(16, 16, vec![1.0; 256]).unwrap();
+        let textured = |colour, depth| {
+            let mut s = gaussian(
+                DVec2::new(32.0, 32.0),
+                Sym2::isotropic(40.0),
+                2000.0,
+                colour,
+                depth,
+            );
+            s.profile = Profile::Texture;
+            s.footprint(64, 64).unwrap()
+        };
+        let footprints = [
+            textured([1.0, 0.0, 0.0], 1.0),
+            textured([0.0, 1.0, 0.0], 2.0),
+        ];
+        let target = Target {
+            texture: Some(&texture),
+            ..Target::new(64, 64)
+        };
+        let bins = TimeBins::<32>::over(&crate::scene::shutter::Shutter::default());
+        let image = rasterize_over(&footprints, &target, &bins, |_| [0.0; 3]).0;
+        let p = image.pixels[32 * 64 + 32];
+        assert!(p[0] > 0.99 && p[1] < 0.01, "{p:?}");
     }
 
     #[test]

@@ -96,6 +96,8 @@ pub struct Texture {
     width: u32,
     height: u32,
     values: Vec<f32>,
+    /// The largest value, its peak: what a footprint's faintness is measured against.
+    peak: f32,
 }
 
 impl Texture {
@@ -114,6 +116,7 @@ impl Texture {
             width,
             height,
             values,
+            peak: 0.0,
         };
         // Midpoint rule on a fine grid over the cut-off square, counting only the inscribed disc.
         const STEPS: usize = 256;
@@ -136,6 +139,7 @@ impl Texture {
         for v in &mut texture.values {
             *v *= scale;
         }
+        texture.peak = texture.values.iter().fold(0.0, |a: f32, &v| a.max(v));
         Some(texture)
     }
 
@@ -221,6 +225,15 @@ impl<'a> Sampler<'a> {
                     across: across.as_vec2().to_array(),
                 }
             }
+        }
+    }
+
+    /// The profile's largest value (before the amplitude): 1 but for a texture, which is scaled
+    /// to integrate to one.
+    pub(super) fn peak(&self) -> f32 {
+        match self.kind {
+            SamplerKind::Texture(texture) => texture.peak,
+            _ => 1.0,
         }
     }
 

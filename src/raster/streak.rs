@@ -274,6 +274,13 @@ impl Shape for StreakRows {
         let slope = self.streak.colour_slope;
         (slope != 0.0).then_some(slope)
     }
+
+    /// Against a long streak's peak, 1, whatever this one's: a streak k standard deviations long
+    /// peaks at 2Φ(k/2) − 1 (0.38 at k = 1, 0.87 at k = 3), so on a short one the threshold is a
+    /// larger share of its own peak (docs/math.md, "Faint footprints").
+    fn faint_below(&self) -> f32 {
+        super::composite::FAINT_VALUE
+    }
 }
 
 #[cfg(test)]
