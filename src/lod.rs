@@ -685,9 +685,9 @@ fn median_sigma(instant: &Instant, surfels: &[Surfel]) -> f64 {
 }
 
 /// Append the merge of `group` (`count` surfels) to `out`: one surfel with the group's projected
-/// area |Σ aᵢ nᵢ|, its area-weighted mean position, normal and colour, and the Gaussian whose covariance in the plane
-/// of the mean normal is the group's (each member's own plus the spread of the members' centres
-/// about the mean). A group whose normals cancel is kept as it is.
+/// area |Σ aᵢ nᵢ|, its area-weighted mean position, normal and colour, and the Gaussian whose
+/// covariance in the plane of the mean normal is the group's (each member's own plus the spread of
+/// the members' centres about the mean). A group whose normals cancel is kept as it is.
 fn merge_group<'s>(
     group: impl Iterator<Item = &'s Surfel> + Clone,
     count: usize,
