@@ -693,7 +693,10 @@ struct ProbeView {
 /// Every probe at time t, each `None` when not in front of the camera. The pose is evaluated
 /// once for all of them.
 fn probes_at(camera: &Camera, object: &Object, probes: &[usize], t: f64) -> Vec<Option<ProbeView>> {
-    let pose = object.motion.pose_at(t).to_affine();
+    let pose = object.motion.pose_at(t);
+    // A surfel's area grows with the square of a keyframed scale, as its screen weight does.
+    let area_scale = pose.scale * pose.scale;
+    let pose = pose.to_affine();
     probes
         .iter()
         .map(|&probe| {
@@ -715,8 +718,8 @@ fn probes_at(camera: &Camera, object: &Object, probes: &[usize], t: f64) -> Vec<
                 view: p_view,
                 screen_sigma: sigma * camera.focal_px / depth,
                 screen,
-                weight: n_view.dot(-p_view) / depth_cubed,
-                facing_weight: p_view.length() / depth_cubed,
+                weight: area_scale * n_view.dot(-p_view) / depth_cubed,
+                facing_weight: area_scale * p_view.length() / depth_cubed,
             })
         })
         .collect()

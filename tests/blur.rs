@@ -145,6 +145,40 @@ fn a_streak_is_as_long_as_a_straight_path_unless_its_shape_may_change_along_it()
 }
 
 #[test]
+fn a_splat_growing_by_its_pose_scale_is_cut_as_one_growing_by_nearing() {
+    // A splat whose screen area grows 9× over the shutter: by its pose's scale (1 → 3) or by
+    // coming three times nearer. Its weight, linear over each sub-segment as `blur` draws it,
+    // must stay within the plan's 1 % either way; with the scale left out of the plan's weight
+    // it was one streak carrying 15 % more light than the reference.
+    let camera = camera(128, 64);
+    let surfel = facing_surfel(DVec3::ZERO, SIGMA_PX / px_per_unit(&camera));
+    let scaled = streak::scene::Motion::new(
+        [1.0, 3.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &scale)| streak::scene::Keyframe {
+                t: i as f64,
+                pose: streak::Pose {
+                    scale,
+                    ..streak::Pose::IDENTITY
+                },
+            })
+            .collect(),
+    )
+    .unwrap();
+    let nearing = linear(DVec3::ZERO, DVec3::new(0.0, 0.0, DISTANCE - DISTANCE / 3.0));
+    for motion in [scaled, nearing] {
+        let s = scene(camera.clone(), vec![object(vec![surfel], motion)]);
+        let blurred = energy(&draw(&s, &Method::BLUR));
+        let reference = energy(&draw(&s, &Method::Reference { samples: 512 }));
+        assert!(
+            (blurred / reference - 1.0).abs() < 0.01,
+            "{blurred} against {reference}"
+        );
+    }
+}
+
+#[test]
 fn a_blurred_splat_carries_the_energy_of_the_static_one() {
     let (scene, _) = translating_scene();
     let total = |image: Vec<f64>| image.iter().sum::<f64>();

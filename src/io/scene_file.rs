@@ -628,9 +628,18 @@ fn validate_object(
             return Err(Error::input(path, &rotate_field, turn));
         }
         previous = Some((axis, degrees));
-        let rotation = axis.map_or(DQuat::IDENTITY, |axis| {
+        let mut rotation = axis.map_or(DQuat::IDENTITY, |axis| {
             DQuat::from_axis_angle(axis, degrees.to_radians())
         });
+        // q and −q are one orientation: after a whole turn (q = −1) a tilt about another axis
+        // is taken the short way, as between two axes only the orientations count. Steps about
+        // one axis are under half a turn (above), so their quaternions never disagree in sign.
+        if keyframes
+            .last()
+            .is_some_and(|last: &Keyframe| last.pose.rotation.dot(rotation) < 0.0)
+        {
+            rotation = -rotation;
+        }
         keyframes.push(Keyframe {
             t: key.t,
             pose: Pose {
@@ -836,6 +845,31 @@ mod tests {
     fn a_half_turn_between_keyframes_asks_for_more_keyframes() {
         let keys = "\n[[object.keyframe]]\nt = 0\n[[object.keyframe]]\nt = 1\nrotate = { axis = [0, 1, 0], degrees = 200 }\n";
         assert!(error_of(&format!("{MINIMAL}{keys}")).contains("add keyframes in between"));
+    }
+
+    #[test]
+    fn a_tilt_after_a_whole_turn_is_the_turn_between_the_orientations() {
+        // A whole turn about y in three steps (its quaternion −1), then 10° about x: the two
+        // orientations are 10° apart, and the tilt is taken that way rather than refused.
+        let mut keys = String::new();
+        for (t, axis, degrees) in [
+            (0.0, "0, 1, 0", 0),
+            (0.25, "0, 1, 0", 120),
+            (0.5, "0, 1, 0", 240),
+            (0.75, "0, 1, 0", 360),
+            (1.0, "1, 0, 0", 10),
+        ] {
+            keys.push_str(&format!(
+                "\n[[object.keyframe]]\nt = {t}\nrotate = {{ axis = [{axis}], degrees = {degrees} }}\n"
+            ));
+        }
+        let scene = Scene::parse(&format!("{MINIMAL}{keys}"), Path::new("s.toml")).unwrap();
+        let motion = &scene.objects[0].motion;
+        let (end, tilt) = (motion.pose_at(0.75).rotation, motion.pose_at(1.0).rotation);
+        assert!((end.angle_between(tilt).to_degrees() - 10.0).abs() < 1e-9);
+        // Halfway through the tilt, 5° from the upright orientation.
+        let halfway = motion.pose_at(0.875).rotation;
+        assert!((halfway.angle_between(DQuat::IDENTITY).to_degrees() - 5.0).abs() < 1e-6);
     }
 
     fn mesh_shape(path: &str, samples: i64, centre: Option<bool>) -> MeshShape {

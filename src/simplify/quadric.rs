@@ -8,7 +8,7 @@ use glam::DVec3;
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Quadric([f64; 10]);
 
-/// Below this, relative to the square of the matrix's largest entry, a 3 × 3 system is singular
+/// Below this, relative to the cube of the matrix's largest entry, a 3 × 3 determinant is singular
 /// for placement: the planes do not pin a point (a flat patch, a straight crease), and the
 /// minimum is a line or a plane of points rather than one.
 const SINGULAR: f64 = 1e-10;
