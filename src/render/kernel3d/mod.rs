@@ -99,7 +99,7 @@ impl KernelStats {
         };
         let merged = if self.merged_pixels > 0 {
             format!(
-                "  {} pixel(s) reached {MAX_FRAGMENTS_PER_PIXEL} fragments: each surface's fragments of one sub-frame merged into one, with its coverage in {TABLE_PARTS} parts of its time\n",
+                "  {} pixel(s) reached {MAX_FRAGMENTS_PER_PIXEL} fragments: each surface's fragments of one sub-frame merged into one per stretch of time they cover, with its coverage in {TABLE_PARTS} parts of it\n",
                 self.merged_pixels
             )
         } else {
