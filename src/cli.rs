@@ -576,6 +576,9 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
     if let (Some(w), Some(h)) = (args.image.width, args.image.height) {
         check_image_size(w, h).map_err(as_option)?;
     }
+    if let Some(samples) = args.image.spatial_samples {
+        streak::scene::Camera::check_spatial_samples(samples).map_err(as_option)?;
+    }
     let mut style_files = Vec::new();
     for path in &args.styles {
         if path.is_dir() {
@@ -593,6 +596,7 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
         samples: args.samples,
         out_dir: args.output.clone(),
         size: args.image.width.zip(args.image.height),
+        spatial_samples: args.image.spatial_samples,
         budget: args.image.budget()?,
     };
     let per_scene = gallery::images_per_scene(&options) as u64;
@@ -668,9 +672,16 @@ fn run_simplify(args: SimplifyArgs) -> Result<()> {
     let mesh = streak::surfels::Mesh::read(&args.mesh)?;
     let faces_in = mesh.triangles.len();
     let target = match (args.faces, args.ratio) {
+        (Some(0), _) => {
+            return Err(Error::Usage(
+                "--faces 0: keep at least one face (a mesh without faces cannot be read back)"
+                    .to_string(),
+            ))
+        }
         (Some(faces), _) => faces,
+        // At least one face, however small the share.
         (None, Some(ratio)) if ratio > 0.0 && ratio <= 1.0 => {
-            (ratio * faces_in as f64).round() as usize
+            ((ratio * faces_in as f64).round() as usize).max(1)
         }
         (None, ratio) => {
             return Err(Error::Usage(format!(

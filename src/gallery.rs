@@ -39,6 +39,8 @@ pub struct GalleryOptions {
     pub out_dir: PathBuf,
     /// Image size overriding the scenes' own.
     pub size: Option<(u32, u32)>,
+    /// Spatial samples per pixel overriding the scenes' own.
+    pub spatial_samples: Option<u32>,
     /// Surfels each scene may have.
     pub budget: Budget,
 }
@@ -130,6 +132,9 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
         if let Some((w, h)) = options.size {
             scene.camera = scene.camera.resized(w, h)?;
         }
+        if let Some(samples) = options.spatial_samples {
+            scene.camera = scene.camera.with_spatial_samples(samples)?;
+        }
         let name = path
             .file_stem()
             .unwrap_or_default()
@@ -160,7 +165,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
         if scene.objects.iter().any(|o| o.mesh().is_some()) {
             jobs.push((Method::ANALYTIC, analytic_knob.clone(), Lod::Auto));
         }
-        let plan = Plan::new(&scene, &Method::BLUR)?;
+        let plan = Plan::new(&scene, &Method::BLUR).map_err(|e| e.in_file(path, ""))?;
         // What the mesh level of detail leaves out is shown by drawing it too.
         let simplified = plan.simplifies_a_mesh();
         if simplified {
@@ -189,7 +194,10 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
                 bar.set_message(format!("{name} {} {knob}{detail}", method.name()));
             }
             let start = Instant::now();
-            let image = Plan::with_lod(&scene, &method, lod)?.render(None).image;
+            let image = Plan::with_lod(&scene, &method, lod)
+                .map_err(|e| e.in_file(path, ""))?
+                .render(None)
+                .image;
             let seconds = start.elapsed().as_secs_f64();
             let file = match method {
                 Method::Hint { .. } => format!("{name}-hint-{knob}.png"),

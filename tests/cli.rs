@@ -769,3 +769,76 @@ const HUGE_PNG: [u8; 65] = [
     0x01, 0x48, 0x06, 0x89, 0xd2, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60,
     0x82,
 ];
+
+#[test]
+fn gallery_and_simplify_mistakes_are_explained() {
+    let dir = workdir("gallery-args");
+    std::fs::create_dir_all(dir.join("scenes")).unwrap();
+    std::fs::create_dir_all(dir.join("styles")).unwrap();
+    std::fs::write(dir.join("scenes/ball.toml"), SCENE).unwrap();
+    let gallery = |extra: &[&str]| {
+        let mut args = vec![
+            "gallery",
+            "--scenes",
+            "scenes",
+            "--styles",
+            "styles",
+            "--samples",
+            "2",
+            "-o",
+            "out",
+        ];
+        args.extend_from_slice(extra);
+        streak(&args, &dir)
+    };
+    // The gallery reads --spatial-samples as render does: a grid's count, or an error.
+    assert_fails_with(
+        &gallery(&["--spatial-samples", "5"]),
+        &["--spatial-samples 5: samples per pixel form an n × n grid"],
+    );
+    let out = gallery(&["--spatial-samples", "1"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // A scene the plan refuses is named.
+    let lights = (0..9)
+        .map(|i| format!("{{ direction = [{i}, 1, 1], intensity = 0.1, shadows = true }}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    std::fs::write(
+        dir.join("scenes/lights.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("scenes/lights.toml"),
+        format!(
+            "{SCENE}\n[lighting]\nlight = [{lights}]\n[[object]]\nshape = {{ type = \"mesh\", path = \"lights.obj\", samples = 10, draw = \"triangles\" }}\n"
+        ),
+    )
+    .unwrap();
+    assert_fails_with(&gallery(&[]), &["lights.toml", "lights cast shadows"]);
+    // Simplifying to no face at all would write a mesh nothing reads.
+    std::fs::write(dir.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    assert_fails_with(
+        &streak(
+            &["simplify", "tri.obj", "--faces", "0", "-o", "x.obj"],
+            &dir,
+        ),
+        &["--faces 0"],
+    );
+    let out = streak(
+        &["simplify", "tri.obj", "--ratio", "0.1", "-o", "x.obj"],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(std::fs::read_to_string(dir.join("x.obj"))
+        .unwrap()
+        .contains("\nf "));
+}

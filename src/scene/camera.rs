@@ -115,6 +115,14 @@ impl Camera {
     /// The same camera drawing triangles with `samples` spatial samples per pixel: a square
     /// number from 1 to [`MAX_SPATIAL_SAMPLES`]; an error names `spatial_samples`.
     pub fn with_spatial_samples(mut self, samples: u32) -> Result<Camera> {
+        Camera::check_spatial_samples(samples)?;
+        self.spatial_samples = samples;
+        Ok(self)
+    }
+
+    /// Whether `samples` spatial samples per pixel can be drawn (see
+    /// [`Camera::with_spatial_samples`]); an error names `spatial_samples`.
+    pub fn check_spatial_samples(samples: u32) -> Result<()> {
         let side = f64::from(samples).sqrt().round() as u32;
         if !(1..=MAX_SPATIAL_SAMPLES).contains(&samples) || side * side != samples {
             return Err(Error::invalid(
@@ -124,8 +132,7 @@ impl Camera {
                 ),
             ));
         }
-        self.spatial_samples = samples;
-        Ok(self)
+        Ok(())
     }
 
     /// The spatial samples of pixel (0, 0) as offsets from its corner, in px: the centres of an
