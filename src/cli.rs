@@ -307,15 +307,9 @@ fn print_quietly(text: &str) {
 /// Load a scene and apply the size override.
 fn load(path: &Path, image: &ImageArgs) -> Result<Scene> {
     let mut scene = Scene::load_within(path, image.budget()?)?;
-    if let (Some(w), Some(h)) = (image.width, image.height) {
-        scene.camera = scene.camera.resized(w, h).map_err(as_option)?;
-    }
-    if let Some(samples) = image.spatial_samples {
-        scene.camera = scene
-            .camera
-            .with_spatial_samples(samples)
-            .map_err(as_option)?;
-    }
+    scene.camera = (scene.camera)
+        .overridden(image.width.zip(image.height), image.spatial_samples)
+        .map_err(as_option)?;
     Ok(scene)
 }
 

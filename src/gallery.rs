@@ -129,12 +129,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
     let mut rows = Vec::new();
     for path in &options.scenes {
         let mut scene = Scene::load_within(path, options.budget)?;
-        if let Some((w, h)) = options.size {
-            scene.camera = scene.camera.resized(w, h)?;
-        }
-        if let Some(samples) = options.spatial_samples {
-            scene.camera = scene.camera.with_spatial_samples(samples)?;
-        }
+        scene.camera = (scene.camera).overridden(options.size, options.spatial_samples)?;
         let name = path
             .file_stem()
             .unwrap_or_default()

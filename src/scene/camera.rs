@@ -165,6 +165,24 @@ impl Camera {
         Ok(self)
     }
 
+    /// The same camera with the image size and spatial samples per pixel a command line asks for
+    /// in place of the scene's, where it asks ([`Camera::resized`],
+    /// [`Camera::with_spatial_samples`]).
+    pub fn overridden(
+        &self,
+        size: Option<(u32, u32)>,
+        spatial_samples: Option<u32>,
+    ) -> Result<Camera> {
+        let mut camera = match size {
+            Some((width, height)) => self.resized(width, height)?,
+            None => self.clone(),
+        };
+        if let Some(samples) = spatial_samples {
+            camera = camera.with_spatial_samples(samples)?;
+        }
+        Ok(camera)
+    }
+
     /// The same camera with another image size (each side 1 to [`MAX_IMAGE_SIDE`]); the vertical
     /// field of view is kept.
     pub fn resized(&self, width: u32, height: u32) -> Result<Camera> {
