@@ -789,17 +789,9 @@ mod tests {
     /// 1/cos 18° = 5 % more.
     #[test]
     fn a_merge_of_fanned_normals_keeps_the_projected_weight() {
-        use crate::project::view_surfel;
+        use crate::project::{tests::camera, view_surfel};
         use crate::scene::{Lighting, Pose};
-        let camera = Camera::new(
-            DVec3::new(0.0, 0.0, 5.0),
-            DVec3::ZERO,
-            DVec3::Y,
-            45.0,
-            200,
-            200,
-        )
-        .unwrap();
+        let camera = camera();
         let instant = Instant::new(&camera, &Pose::IDENTITY);
         let tilt = 18f64.to_radians();
         let members: Vec<Surfel> = [-tilt, tilt]

@@ -595,7 +595,7 @@ pub(crate) fn motion_ellipse(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
@@ -608,7 +608,8 @@ mod tests {
         assert_eq!(out.len(), 7);
     }
 
-    fn camera() -> Camera {
+    /// A 200 × 200 camera 5 units up the z axis looking at the origin.
+    pub(crate) fn camera() -> Camera {
         Camera::new(
             DVec3::new(0.0, 0.0, 5.0),
             DVec3::ZERO,
