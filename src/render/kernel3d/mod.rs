@@ -137,6 +137,17 @@ pub(super) fn render(
     subframes: Subframes,
     visibility: Visibility,
 ) -> Render {
+    render_in_passes(scene, plan, subframes, visibility, MAX_KERNELS_PER_PASS)
+}
+
+/// [`render`] holding at most `kernels_per_pass` kernels at once.
+fn render_in_passes(
+    scene: &Scene,
+    plan: &Plan,
+    subframes: Subframes,
+    visibility: Visibility,
+    kernels_per_pass: usize,
+) -> Render {
     let camera = &scene.camera;
     let (width, height) = (camera.width, camera.height);
     let (times, planned_subframes) = subframe_times(scene, plan, subframes);
@@ -173,7 +184,7 @@ pub(super) fn render(
             moving_surfels += surfels.len();
         }
     }
-    // Passes of consecutive sub-frames, as many as keep the kernels within MAX_KERNELS_PER_PASS
+    // Passes of consecutive sub-frames, as many as keep the kernels within `kernels_per_pass`
     // (and, for the GPU approximation, its depth buffers within MAX_DEPTH_BUFFER_PIXELS).
     // Fragments of different passes cover disjoint parts of the exposure, so resolving each pass
     // over its own part and adding them up is exact.
@@ -182,7 +193,7 @@ pub(super) fn render(
         Visibility::Exact => usize::MAX,
         Visibility::Approximate => (MAX_DEPTH_BUFFER_PIXELS / pixel_count).saturating_sub(1),
     };
-    let per_pass = (MAX_KERNELS_PER_PASS.saturating_sub(still_kernels.len()))
+    let per_pass = (kernels_per_pass.saturating_sub(still_kernels.len()))
         .checked_div(moving_surfels)
         .unwrap_or(windows.len())
         .min(depth_buffers)
@@ -256,7 +267,7 @@ pub(super) fn render(
                     scene,
                     &work,
                     grid.pixels(tile),
-                    &windows[first..last],
+                    (&windows[first..last], mass),
                     visible_depth.as_deref(),
                 );
                 for (at, resolved) in grid.in_band(tile).zip(&result.resolved) {
@@ -453,7 +464,9 @@ struct TileWork<'a> {
 }
 
 /// The fragments of the tile over pixels [x0, x1) × [y0, y1) resolved per pixel, the number of
-/// fragments in the tile, the most on one pixel, and the most held at once.
+/// fragments in the tile, the most on one pixel, and the most held at once. `windows` are the
+/// pass's sub-frames, of an exposure `exposure` long: pieces are cut as finely whatever part of it
+/// the pass holds.
 ///
 /// Fragments are made and resolved one row of the tile at a time, and within a row one time bin
 /// of sub-frames at a time ([`SubFrameBins`]): a moving kernel's fragments lie within its sub-frame,
@@ -466,7 +479,7 @@ fn resolve_tile(
     scene: &Scene,
     work: &TileWork,
     [x0, y0, x1, y1]: [u32; 4],
-    windows: &[[f64; 2]],
+    (windows, exposure): (&[[f64; 2]], f64),
     visible_depth: Option<&[Vec<f32>]>,
 ) -> TileResult {
     let camera = &scene.camera;
@@ -508,9 +521,7 @@ fn resolve_tile(
     let each_bin: Vec<SubFrameBins> = (0..bins.len())
         .map(|b| SubFrameBins::new(&[bins.span(b)]))
         .collect();
-    let pass = [bins.span(0)[0], bins.span(bins.len() - 1)[1]];
-    let exposure = pass[1] - pass[0];
-    let pass = SubFrameBins::new(&[pass]);
+    let pass = SubFrameBins::new(&[[bins.span(0)[0], bins.span(bins.len() - 1)[1]]]);
     let mut out = TileResult {
         resolved: Vec::with_capacity(w * (y1 - y0) as usize),
         ..TileResult::default()
@@ -618,4 +629,75 @@ struct TileResult {
     /// Pixels whose fragments were merged, and of those, with the depth tolerance widened.
     merged: usize,
     widened: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Camera, Keyframe, Motion, Pose};
+    use crate::surfels::from_mesh;
+    use crate::surfels::mesh::tests::square;
+    use crate::Method;
+
+    /// Squares at several depths sliding across each other, densely sampled, so that a pixel
+    /// holds more fragment ends within a sub-frame than its share of the pieces.
+    fn overlapping_squares() -> Scene {
+        let camera = Camera::new(
+            DVec3::new(0.0, 0.0, 10.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            20.0,
+            24,
+            24,
+        )
+        .unwrap();
+        (0..4).fold(Scene::new(camera), |scene, i| {
+            let (z, shift) = (0.3 * f64::from(i), if i % 2 == 0 { 1.0 } else { -1.0 });
+            let mut surfels = from_mesh(&square(2.0), 3000, false).unwrap();
+            let c = i as f32;
+            for s in &mut surfels {
+                s.colour = [0.2 * c + 0.2, 0.5, 1.0 - 0.2 * c];
+            }
+            let key = |t: f64, x: f64| Keyframe {
+                t,
+                pose: Pose {
+                    translation: DVec3::new(x - 1.0, -1.0, z),
+                    ..Pose::IDENTITY
+                },
+            };
+            let motion = Motion::new(vec![key(0.0, -shift), key(1.0, shift)]).unwrap();
+            scene.with_object(Object::new(format!("square {i}"), surfels, motion))
+        })
+    }
+
+    #[test]
+    fn a_render_in_passes_cuts_its_pixels_as_one_pass_does() {
+        // Eight sub-frames, each its own time bin in one pass as in four: the passes' bins resolve
+        // the same fragments over the same spans, so the images agree to the bit only if each
+        // pass cuts its pieces at the whole exposure's shortest, not at its own share's.
+        let scene = overlapping_squares();
+        let method = Method::Kernel3d {
+            subframes: Subframes::Equal(8),
+            visibility: Visibility::Exact,
+        };
+        let plan = Plan::new(&scene, &method).unwrap();
+        let moving: usize = plan.drawn().map(|(_, _, surfels)| surfels.len()).sum();
+        let draw = |kernels_per_pass| {
+            let render = render_in_passes(
+                &scene,
+                &plan,
+                Subframes::Equal(8),
+                Visibility::Exact,
+                kernels_per_pass,
+            );
+            (render.image, render.stats.kernel3d().unwrap().passes)
+        };
+        let (whole, one) = draw(MAX_KERNELS_PER_PASS);
+        let (parts, four) = draw(2 * moving);
+        assert_eq!((one, four), (1, 4));
+        let differing = (whole.pixels.iter().zip(&parts.pixels))
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(differing, 0, "of {} pixels", whole.pixels.len());
+    }
 }
