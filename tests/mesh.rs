@@ -200,3 +200,14 @@ fn mesh_mistakes_are_errors_naming_file_and_field() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_gz_suffix_in_capitals_is_gunzipped_too() {
+    // Formats are named ignoring case, and so is `.gz`: `SPHERE.OBJ.GZ` reads as its lower-case
+    // twin (its bytes were once parsed as OBJ text without being gunzipped: no faces).
+    let worst = least_coverage("SPHERE.OBJ.GZ", &gzip(&obj_text(5)), 30_000);
+    assert!(
+        worst >= OPAQUE,
+        "least-covered pixel inside the silhouette: {worst}"
+    );
+}

@@ -35,3 +35,37 @@ fn an_estimated_point_cloud_covers_its_silhouette_without_holes() {
         "least-covered pixel inside the silhouette: {worst}"
     );
 }
+
+#[test]
+fn a_cloud_declaring_more_points_than_the_budget_is_refused_before_its_points_are_read() {
+    // The header says 20 million points and the body holds three: the budget is checked against
+    // what the header declares, before memory is spent on the points (once the whole body was
+    // parsed first, 540 MB for such a file of 60 MB).
+    let dir = std::env::temp_dir().join(format!("streak-cloud-budget-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let header = "ply\nformat ascii 1.0\nelement vertex 20000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    std::fs::write(
+        dir.join("huge.ply"),
+        format!("{header}0 0 0\n1 0 0\n0 1 0\n"),
+    )
+    .unwrap();
+    let scene_text = format!(
+        r#"{UNIT_SPHERE_VIEW}
+        [[object]]
+        shape = {{ type = "ply", path = "huge.ply" }}
+    "#
+    );
+    let budget = streak::surfels::Budget::new(1000).unwrap();
+    let error = Scene::parse_within(&scene_text, &dir.join("scene.toml"), budget)
+        .err()
+        .expect("a cloud over the budget")
+        .to_string();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(
+        error.contains("huge.ply")
+            && error.contains("element vertex")
+            && error.contains("20000000 points")
+            && error.contains("budget of 1000"),
+        "{error}"
+    );
+}

@@ -27,7 +27,17 @@ use crate::surfels::mesh::Mesh;
 /// normal of zero length (normals are scaled to unit length), a radius that is not positive, a
 /// float colour outside [0, 1].
 pub fn read_ply(path: &Path) -> Result<PointCloud> {
-    parse_ply(&read_file(path, MAX_PLY_BYTES)?, path)
+    read_ply_checked(path, |_| Ok(()))
+}
+
+/// [`read_ply`], handing `check` the number of points the header declares (at least as many as
+/// the cloud will hold) before the body is read, so that a cloud too large for its use is
+/// refused before memory is spent on its points.
+pub(crate) fn read_ply_checked(
+    path: &Path,
+    check: impl FnOnce(usize) -> Result<()>,
+) -> Result<PointCloud> {
+    parse_checked(&read_file(path, MAX_PLY_BYTES)?, path, check)
 }
 
 /// Largest PLY file read, after decompression: 2 GiB holds tens of millions of points, and a
@@ -37,9 +47,19 @@ pub const MAX_PLY_BYTES: u64 = 2 << 30;
 /// Same as [`read_ply`], from uncompressed bytes already in memory; `path` is only used for error
 /// messages.
 pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud> {
+    parse_checked(bytes, path, |_| Ok(()))
+}
+
+/// [`parse_ply`], with the declared point count passed to `check` first.
+fn parse_checked(
+    bytes: &[u8],
+    path: &Path,
+    check: impl FnOnce(usize) -> Result<()>,
+) -> Result<PointCloud> {
     let header = parse_header(bytes, path)?;
     let vertex_element = vertex_element(&header, path)?;
     let vertices = &header.elements[vertex_element];
+    check(vertices.count)?;
     let layout = VertexLayout::new(vertices, path)?;
     let mut reader = BodyReader::new(&header, bytes);
     for element in &header.elements[..vertex_element] {

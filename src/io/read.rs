@@ -15,9 +15,10 @@ pub(crate) enum Bounded {
     Over(u64),
 }
 
-/// Whether `path` names a gzipped file (`.gz`).
+/// Whether `path` names a gzipped file (`.gz`, in any case, as the formats' names are read).
 pub(crate) fn is_gzipped(path: &Path) -> bool {
-    path.extension().is_some_and(|ext| ext == "gz")
+    path.extension()
+        .is_some_and(|ext| ext.eq_ignore_ascii_case("gz"))
 }
 
 /// The bytes of the file at `path`, gunzipped on the fly when its name ends in `.gz`, or an

@@ -10,7 +10,7 @@ use glam::{DQuat, DVec3};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
-use super::ply::read_ply;
+use super::ply::read_ply_checked;
 use super::raw_volume::VoxelType;
 use crate::error::{Error, Result};
 use crate::scene::{
@@ -708,17 +708,18 @@ fn object_surfels(
             let neighbours = check_neighbours(neighbours.unwrap_or(DEFAULT_NEIGHBOURS))
                 .map_err(|e| e.in_file(path, &shape_field))?;
             let file = base.join(file);
-            let cloud =
-                read_ply(&file).map_err(|e| e.named_by(path, &format!("{shape_field}.path")))?;
-            let points = cloud.positions.len();
-            budget
-                .allow(
-                    points,
-                    "vertices",
-                    &format!("its {points} points are"),
-                    "thin the cloud",
-                )
-                .map_err(|e| e.in_file(&file, ""))?;
+            // Checked against the count the header declares, before the points are read.
+            let cloud = read_ply_checked(&file, |points| {
+                budget
+                    .allow(
+                        points,
+                        "element vertex",
+                        &format!("its {points} points are"),
+                        "thin the cloud",
+                    )
+                    .map_err(|e| e.in_file(&file, ""))
+            })
+            .map_err(|e| e.named_by(path, &format!("{shape_field}.path")))?;
             return from_point_cloud(&cloud, neighbours).map_err(|e| e.in_file(&file, ""));
         }
         Shape::Volume(ref volume) => {
