@@ -368,3 +368,183 @@ fn the_sparsest_trail_allowed_stays_finite_and_a_sparser_one_is_refused() {
         "{error}"
     );
 }
+
+#[test]
+fn a_flash_a_few_subnormals_after_the_shutter_opens_draws_without_panicking() {
+    // The trail's window is then a few subnormals long: a sixteenth of it, the longest piece of
+    // a fading trail, rounds to zero, and the pieces it cut the window into were once counted as
+    // infinitely many (a panic). Speed lines cut theirs the same way.
+    let scene = sliding_square(6.0);
+    for text in [
+        "[object]\nflash = 5e-324\n[trail]\nfade = 0.5",
+        "[object]\nflash = 5e-324\n[trail]\ndraw = false\n[speed_lines]\ndraw = true\nselect = \"sample\"",
+    ] {
+        let out = hint(&scene, &style(text));
+        assert!(
+            out.image.pixels.iter().flatten().all(|c| c.is_finite()),
+            "{text}"
+        );
+    }
+}
+
+#[test]
+fn ramp_keys_the_colour_rule_does_not_read_are_refused_by_name() {
+    for (text, field) in [
+        ("[trail]\nramp = [[1, 0, 0], [0, 1, 0]]", "trail.ramp"),
+        ("[trail]\nramp_by = \"time\"", "trail.ramp_by"),
+        ("[trail]\nspeed_range = [5, 1]", "trail.speed_range"),
+        (
+            "[trail]\ncolour = \"ramp\"\nramp = [[1, 0, 0], [0, 1, 0]]\nramp_by = \"time\"\nspeed_range = [0, 10]",
+            "trail.speed_range",
+        ),
+    ] {
+        let error = Style::parse(text, Path::new("mistaken.toml"))
+            .err()
+            .unwrap_or_else(|| panic!("{text}: accepted"))
+            .to_string();
+        assert!(
+            error.contains("mistaken.toml") && error.contains(field),
+            "{text}: {error}"
+        );
+    }
+}
+
+#[test]
+fn speed_lines_start_only_on_visible_points_whatever_the_trail_takes() {
+    // A square facing away draws nothing, and its points carry no speed lines, even where the
+    // trail takes every point.
+    let camera = camera(200, 80);
+    let sliding = motion(&[
+        (0.0, pose(DVec3::new(-3.0, 0.0, 0.0), 0.0)),
+        (1.0, pose(DVec3::new(3.0, 0.0, 0.0), 0.0)),
+    ]);
+    let away = scene(
+        camera,
+        vec![object(patch(DVec3::ZERO, [1.0, 1.0], 0.04, true), sliding)],
+    );
+    for select in ["silhouette", "sample"] {
+        let lines = format!(
+            "[trail]\ndraw = false\nemitters = \"all\"\n[speed_lines]\ndraw = true\nselect = \"{select}\""
+        );
+        let out = hint(&away, &style(&lines));
+        assert_eq!(out.stats.hint().unwrap().speed_lines, 0, "{select}");
+        assert!(out.image.pixels.iter().all(|p| *p == [0.0; 3]), "{select}");
+    }
+    // The trail's density thins the trail, not the speed lines; the points it leaves out are
+    // counted apart from those that emit.
+    let scene = sliding_square(6.0);
+    let with_density = |density: f64| {
+        let text = format!(
+            "[trail]\ndensity = {density}\n[speed_lines]\ndraw = true\nselect = \"sample\"\ncount = 40\nspacing = 2"
+        );
+        *hint(&scene, &style(&text)).stats.hint().unwrap()
+    };
+    let (whole, sparse) = (with_density(1.0), with_density(0.01));
+    assert_eq!(whole.speed_lines, sparse.speed_lines);
+    assert_eq!(whole.sparse, 0);
+    assert_eq!(sparse.emitting + sparse.sparse, whole.emitting);
+    assert!(sparse.emitting < whole.emitting / 20, "{sparse:?}");
+}
+
+#[test]
+fn the_object_look_is_the_moving_objects_and_leaves_still_ones_as_they_are() {
+    // A still square beside a sliding one: a flat colour, a see-through or an undrawn moving
+    // object leaves the still square's pixels as the default style draws them.
+    let camera = camera(200, 80);
+    let still = motion(&[(0.0, pose(DVec3::new(-4.0, 0.0, 0.0), 0.0))]);
+    let sliding = motion(&[
+        (0.0, pose(DVec3::ZERO, 0.0)),
+        (1.0, pose(DVec3::new(3.0, 0.0, 0.0), 0.0)),
+    ]);
+    let square = || patch(DVec3::ZERO, [1.0, 1.0], 0.04, false);
+    let scene = scene(
+        camera,
+        vec![object(square(), still), object(square(), sliding)],
+    );
+    let scale = px_per_unit(&scene.camera);
+    let (still_x, moving_x) = (
+        (100.0 - 4.0 * scale) as usize,
+        (100.0 + 3.0 * scale) as usize,
+    );
+    let plain = hint(&scene, &style("")).image;
+    for text in [
+        "[object]\ncolour = [1, 0, 0]",
+        "[object]\nopacity = 0.25",
+        "[object]\nopacity = 0",
+        "[object]\ndraw = false",
+    ] {
+        let image = hint(&scene, &style(text)).image;
+        for y in 36..44 {
+            let at = y * 200 + still_x;
+            assert_eq!(image.pixels[at], plain.pixels[at], "{text}, row {y}");
+        }
+    }
+    // On the moving square at the flash, the look applies: a quarter of its light at 0.25.
+    let quarter = hint(
+        &scene,
+        &style("[trail]\ndraw = false\n[object]\nopacity = 0.25"),
+    )
+    .image;
+    let full = hint(&scene, &style("[trail]\ndraw = false")).image;
+    let (q, f) = (value(&quarter, moving_x, 40), value(&full, moving_x, 40));
+    assert!(f > 0.5 && (q - 0.25 * f).abs() < 1e-4, "{q} of {f}");
+}
+
+#[test]
+fn copies_too_short_for_f64_are_sharp_ghosts_not_nothing() {
+    // Four copies each drawn over a duty of their slot: below about 10⁻¹⁶ the copy's start
+    // rounds onto its end; it is then drawn over the shortest time f64 tells, as bright as a
+    // short copy (each is a whole exposure of its own slot).
+    let scene = sliding_square(6.0);
+    let energy = |duty: &str| -> f64 {
+        let text = format!("[object]\ndraw = false\n[trail]\ncopies = 4\nduty = {duty}");
+        let image = hint(&scene, &style(&text)).image;
+        image.pixels.iter().flatten().map(|&c| f64::from(c)).sum()
+    };
+    let short = energy("1e-9");
+    assert!(short > 100.0, "{short}");
+    for duty in ["1e-17", "1e-300"] {
+        let tiny = energy(duty);
+        assert!(
+            (tiny / short - 1.0).abs() < 0.01,
+            "{duty}: {tiny} against {short}"
+        );
+    }
+}
+
+#[test]
+fn a_textured_trail_turns_with_the_motion() {
+    // A texture bright on its left half (the oldest end): moving right, the trail's light lies
+    // left of its middle; moving left, right of it, by as much.
+    let mut half = image::GrayImage::new(64, 64);
+    for (x, _, p) in half.enumerate_pixels_mut() {
+        p.0 = [if x < 32 { 255 } else { 0 }];
+    }
+    let dir = std::env::temp_dir().join(format!("streak-texture-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    half.save(dir.join("half.png")).unwrap();
+    let look = Arc::new(
+        Style::parse(
+            "[object]\ndraw = false\n[trail]\ntexture = { image = \"half.png\" }",
+            &dir.join("style.toml"),
+        )
+        .unwrap(),
+    );
+    let offsets: Vec<f64> = [2.0, -2.0]
+        .into_iter()
+        .map(|travel| {
+            let camera = camera(200, 80);
+            let sliding = motion(&[
+                (0.0, pose(DVec3::new(-travel / 2.0, 0.0, 0.0), 0.0)),
+                (1.0, pose(DVec3::new(travel / 2.0, 0.0, 0.0), 0.0)),
+            ]);
+            let surfel = vec![facing_surfel(DVec3::ZERO, 0.05)];
+            let scene = scene(camera, vec![object(surfel, sliding)]);
+            // From the path's middle, toward the newest end.
+            (centroid_x(&hint(&scene, &look).image) - 100.0) * travel.signum()
+        })
+        .collect();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(offsets[0] < -1.0, "{offsets:?}");
+    assert!((offsets[0] - offsets[1]).abs() < 0.05, "{offsets:?}");
+}

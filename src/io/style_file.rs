@@ -60,7 +60,7 @@ struct TrailSpec {
     width: f64,
     colour: TrailColourSpec,
     ramp: Option<Vec<[f64; 3]>>,
-    ramp_by: RampBy,
+    ramp_by: Option<RampBy>,
     speed_range: Option<[f64; 2]>,
     fade: f64,
     texture: TextureSpec,
@@ -84,7 +84,7 @@ impl Default for TrailSpec {
             width: 1.0,
             colour: TrailColourSpec::Object,
             ramp: None,
-            ramp_by: RampBy::Speed,
+            ramp_by: None,
             speed_range: None,
             fade: 1.0,
             texture: TextureSpec::Builtin(Profile::Gaussian),
@@ -215,6 +215,25 @@ fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
         colour: o.colour.map(linear),
     };
     let t = &spec.trail;
+    // A key the colour rule does not read is a mistake to point out, not to ignore.
+    let unused = match (t.colour, t.ramp_by) {
+        (TrailColourSpec::Object, _) => [
+            ("trail.ramp", t.ramp.is_some()),
+            ("trail.ramp_by", t.ramp_by.is_some()),
+            ("trail.speed_range", t.speed_range.is_some()),
+        ]
+        .into_iter()
+        .find(|&(_, given)| given)
+        .map(|(key, _)| (key, "colour = \"object\" does not use it: set colour = \"ramp\", or remove it")),
+        (TrailColourSpec::Ramp, Some(RampBy::Time)) => t.speed_range.is_some().then_some((
+            "trail.speed_range",
+            "ramp_by = \"time\" does not use it (it maps speeds to the ramp): remove it, or ramp by speed",
+        )),
+        (TrailColourSpec::Ramp, _) => None,
+    };
+    if let Some((key, why)) = unused {
+        return Err(Error::input(path, key, why));
+    }
     let trail_colour = match (t.colour, &t.ramp) {
         (TrailColourSpec::Object, _) => TrailColour::Object,
         (TrailColourSpec::Ramp, None) => {
@@ -226,7 +245,7 @@ fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
         }
         (TrailColourSpec::Ramp, Some(stops)) => TrailColour::Ramp {
             stops: stops.iter().map(|&c| linear(c)).collect(),
-            by: t.ramp_by,
+            by: t.ramp_by.unwrap_or(RampBy::Speed),
             speed_range: t.speed_range,
         },
     };

@@ -590,7 +590,7 @@ impl<'a> Ellipse<'a> {
         Ellipse {
             spans: RowSpans::new(f),
             conic: f.conic,
-            sampler: Sampler::new(f.profile, f.conic, texture),
+            sampler: Sampler::new(f.profile, f.conic, f.time_gradient, texture),
         }
     }
 }
@@ -666,12 +666,19 @@ impl Layer {
             .for_each(|((b, &c), &t)| *b = over(c, t, *b));
     }
 
-    /// The layer with its opacity scaled by `opacity` in [0, 1].
+    /// The layer with what it holds beyond `base` (a layer of some of its footprints, of the same
+    /// size) seen through `opacity` in [0, 1]: its premultiplied colour and transmittance taken
+    /// `opacity` of the way from `base`'s to its own. Where only its other footprints show they
+    /// fade toward what lies behind, where `base`'s are in front they stay as they are, and where
+    /// the others pass in front of `base`'s, those show through them.
     #[must_use]
-    pub fn with_opacity(mut self, opacity: f32) -> Layer {
-        for (c, t) in self.colour.iter_mut().zip(&mut self.transmittance) {
-            *c = c.map(|v| v * opacity);
-            *t = 1.0 - opacity * (1.0 - *t);
+    pub fn faded_beyond(mut self, base: &Layer, opacity: f32) -> Layer {
+        let lerp = |from: f32, to: f32| from + opacity * (to - from);
+        for ((c, t), (&base_c, &base_t)) in (self.colour.iter_mut().zip(&mut self.transmittance))
+            .zip(base.colour.iter().zip(&base.transmittance))
+        {
+            *c = [0, 1, 2].map(|i| lerp(base_c[i], c[i]));
+            *t = lerp(base_t, *t);
         }
         self
     }

@@ -180,6 +180,45 @@ pub(super) struct Sampler<'a> {
     across: [f32; 2],
 }
 
+/// Rows (a, b) of the map d ↦ (a·d, b·d) from a pixel offset to a texture's unit coordinates on
+/// a footprint of inverse covariance `conic` = aaᵀ + bbᵀ, so that the footprint's ellipse maps to
+/// the texture's unit circle. The texture's horizontal axis (b·d = 0) lies along `motion`, its
+/// left at the oldest end: with unit m along the motion and m⊥ across it, writing
+/// q_mm = mᵀQm, q_mp = mᵀQm⊥, a = √q_mm m + (q_mp / √q_mm) m⊥ and b = √(det Q / q_mm) m⊥ (the
+/// ellipse sheared onto the circle where its axes are not along the motion). Without motion, the
+/// horizontal axis is the ellipse's major axis.
+fn texture_frame([a, b, c]: [f64; 3], motion: [f32; 2]) -> [glam::DVec2; 2] {
+    let conic = |u: glam::DVec2, v: glam::DVec2| {
+        a * u.x * v.x + b * (u.x * v.y + u.y * v.x) + c * u.y * v.y
+    };
+    let m = glam::DVec2::from(motion.map(f64::from)).normalize_or_zero();
+    let q_mm = conic(m, m);
+    let det = a * c - b * b;
+    if m != glam::DVec2::ZERO && q_mm > 0.0 && det > 0.0 {
+        let across = m.perp();
+        let root = q_mm.sqrt();
+        return [
+            m * root + across * (conic(m, across) / root),
+            across * (det / q_mm).sqrt(),
+        ];
+    }
+    // Eigenvectors of the conic: the smaller eigenvalue belongs to the major axis.
+    let mean = 0.5 * (a + c);
+    let radius = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (small, large) = (mean - radius, mean + radius);
+    let major = if b.abs() > 1e-12 * (a.abs() + c.abs()) {
+        glam::DVec2::new(b, small - a).normalize()
+    } else if a <= c {
+        glam::DVec2::X
+    } else {
+        glam::DVec2::Y
+    };
+    [
+        major * small.max(0.0).sqrt(),
+        major.perp() * large.max(0.0).sqrt(),
+    ]
+}
+
 enum SamplerKind<'a> {
     /// exp(−q/2), from [`GAUSSIAN_TABLE`].
     Gaussian(&'static GaussianTable),
@@ -191,8 +230,15 @@ enum SamplerKind<'a> {
 }
 
 impl<'a> Sampler<'a> {
-    /// The sampler for `profile` on a footprint with inverse covariance `conic` (xx, xy, yy).
-    pub(super) fn new(profile: Profile, conic: [f32; 3], texture: Option<&'a Texture>) -> Self {
+    /// The sampler for `profile` on a footprint with inverse covariance `conic` (xx, xy, yy) that
+    /// moves along `motion` on screen (its covering time's gradient: any vector along the motion
+    /// from its oldest end to its newest; zero without motion).
+    pub(super) fn new(
+        profile: Profile,
+        conic: [f32; 3],
+        motion: [f32; 2],
+        texture: Option<&'a Texture>,
+    ) -> Self {
         let untextured = |kind| Sampler {
             kind,
             along: [0.0; 2],
@@ -204,21 +250,7 @@ impl<'a> Sampler<'a> {
             (Profile::Ring, _) => untextured(SamplerKind::Ring),
             (Profile::Texture, None) => untextured(SamplerKind::Blank),
             (Profile::Texture, Some(texture)) => {
-                // Eigenvectors of the conic: the smaller eigenvalue belongs to the major axis.
-                let [a, b, c] = conic.map(f64::from);
-                let mean = 0.5 * (a + c);
-                let radius = (0.25 * (a - c) * (a - c) + b * b).sqrt();
-                let (small, large) = (mean - radius, mean + radius);
-                let major = if b.abs() > 1e-12 * (a.abs() + c.abs()) {
-                    glam::DVec2::new(b, small - a).normalize()
-                } else if a <= c {
-                    glam::DVec2::X
-                } else {
-                    glam::DVec2::Y
-                };
-                let minor = major.perp();
-                let along = major * small.max(0.0).sqrt();
-                let across = minor * large.max(0.0).sqrt();
+                let [along, across] = texture_frame(conic.map(f64::from), motion);
                 Sampler {
                     kind: SamplerKind::Texture(texture),
                     along: along.as_vec2().to_array(),
@@ -293,7 +325,7 @@ mod tests {
             Profile::Ring,
             Profile::Texture,
         ] {
-            let sampler = Sampler::new(profile, identity, Some(&texture));
+            let sampler = Sampler::new(profile, identity, [0.0; 2], Some(&texture));
             let numeric = integrate(&sampler);
             let stated = profile.integral();
             // Midpoint rule on a 600² grid: the soft edges and bilinear texels are resolved to
@@ -307,7 +339,7 @@ mod tests {
 
     #[test]
     fn the_gaussian_table_matches_exp_to_its_stated_error() {
-        let sampler = Sampler::new(Profile::Gaussian, [1.0, 0.0, 1.0], None);
+        let sampler = Sampler::new(Profile::Gaussian, [1.0, 0.0, 1.0], [0.0; 2], None);
         let worst = (0..=9000)
             .map(|i| {
                 let q = i as f32 * CUTOFF_Q / 9000.0;
@@ -325,7 +357,7 @@ mod tests {
         // the −x side; two standard deviations out each way (8 px) lie on either half.
         let texture = Texture::new(2, 1, vec![1.0, 0.0]).unwrap();
         let wide = [1.0 / 16.0, 0.0, 1.0];
-        let sampler = Sampler::new(Profile::Texture, wide, Some(&texture));
+        let sampler = Sampler::new(Profile::Texture, wide, [0.0; 2], Some(&texture));
         let (left, right) = (
             sampler.value([-8.0, 0.0], 4.0),
             sampler.value([8.0, 0.0], 4.0),
@@ -333,7 +365,7 @@ mod tests {
         assert!(left > 10.0 * right, "{left} {right}");
         // Turned a quarter: the same texture now runs vertically.
         let tall = [1.0, 0.0, 1.0 / 16.0];
-        let sampler = Sampler::new(Profile::Texture, tall, Some(&texture));
+        let sampler = Sampler::new(Profile::Texture, tall, [0.0; 2], Some(&texture));
         let (a, b) = (
             sampler.value([0.0, -8.0], 4.0),
             sampler.value([0.0, 8.0], 4.0),

@@ -52,6 +52,8 @@ const SILHOUETTE_COSINE: f64 = 0.35;
 pub struct HintStats {
     /// Surfels of moving objects that emit a trail.
     pub emitting: usize,
+    /// Surfels that would emit a trail but are left out by the trail's density.
+    pub sparse: usize,
     /// Surfels that emit no trail because they face away from the camera at flash time.
     pub back_facing: usize,
     /// Surfels that emit no trail because they are hidden in the object image at flash time.
@@ -70,12 +72,13 @@ impl HintStats {
     pub fn explain(&self) -> String {
         let c = &self.trail_culled;
         format!(
-            "hint: {} surfels emit trails; left out: {} back-facing and {} hidden in the object image at the flash\n\
+            "hint: {} surfels emit trails; left out: {} back-facing and {} hidden in the object image at the flash, {} by the trail's density\n\
              \x20 {} trail splats; trail sub-segments left out: {} back-facing throughout, {} off-screen, {} behind the near plane, {} without weight\n\
              \x20 {} speed lines\n",
             self.emitting,
             self.back_facing,
             self.hidden,
+            self.sparse,
             self.trail_splats,
             c.back_facing,
             c.off_screen,
@@ -116,8 +119,8 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         .iter()
         .map(|object| views_at(scene, (object, object.surfels()), flash))
         .collect();
-    // Footprints of still objects, then of moving ones: with `object.draw` off only the moving
-    // ones are left out of the picture, but all of them hide points.
+    // Footprints of still objects, then of moving ones: `object.draw`, `object.colour` and
+    // `object.opacity` are the moving ones' (all of them hide points).
     let mut object_footprints = Vec::new();
     for still in [true, false] {
         for (views, object_plan) in flash_views.iter().zip(&plan.objects) {
@@ -125,8 +128,9 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 continue;
             }
             for view in views {
+                let colour = if still { None } else { style.object.colour };
                 let result = match view {
-                    Some(v) => static_footprint(camera, &recoloured(v, style.object.colour)),
+                    Some(v) => static_footprint(camera, &recoloured(v, colour)),
                     None => Err(Cull::BehindNear),
                 };
                 stats.culled.keep(result, &mut object_footprints);
@@ -151,10 +155,9 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 ..
             }
         );
-    let max_piece = if gradient {
-        (window[1] - window[0]) / GRADIENT_PIECES
-    } else {
-        f64::INFINITY
+    let fineness = Fineness {
+        whole: window[1] - window[0],
+        pieces: if gradient { GRADIENT_PIECES } else { 1.0 },
     };
     let fastest = plan
         .objects
@@ -183,14 +186,16 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         let ObjectMotion::Moving { segments, .. } = &object_plan.motion else {
             continue;
         };
-        let emits = emitters(views, trail, &object_layer, &mut hint);
+        let seen = seen_at_flash(views, &object_layer);
+        let emits = emitters(&seen, trail, &mut hint);
         // The trail is drawn from the plan's surfels: where it merged them, they emit by how
         // they are seen at the flash themselves (the counts and the speed lines keep the
         // object's own surfels).
         let trail_surfels = plan.surfels(index);
         let merged_emits = (object_plan.lod.merged.is_some() && trail.draw).then(|| {
             let views = views_at(scene, (object, trail_surfels), flash);
-            emitters(&views, trail, &object_layer, &mut HintStats::default())
+            let seen = seen_at_flash(&views, &object_layer);
+            emitters(&seen, trail, &mut HintStats::default())
         });
         let trail_emits = merged_emits.as_deref().unwrap_or(&emits);
         if trail.draw && window[1] > window[0] {
@@ -207,7 +212,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 (object, trail_surfels),
                 segments,
                 &copies,
-                max_piece,
+                fineness,
                 trail_emits,
                 &mut trail_footprints,
             );
@@ -221,7 +226,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
                 index,
                 line_window[1],
                 views,
-                &emits,
+                &seen,
             ));
         }
     }
@@ -254,16 +259,21 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         speed_lines::draw_over(&lines, &look, image);
     };
 
-    let drawn_layer = if style.object.draw {
+    // The moving objects are drawn as `object.draw` and `object.opacity` say, the still ones
+    // always and opaque: where the two differ, the stills are drawn on their own (the whole layer
+    // is dropped first where it is not drawn: one layer less held).
+    let opacity = style.object.opacity as f32;
+    let drawn_layer = if style.object.draw && opacity >= 1.0 {
         object_layer
     } else {
-        // Not needed past the emitters: one layer less held while the stills are drawn.
-        drop(object_layer);
-        let (layer, raster) = rasterize(&object_footprints[..stills], &target, &TimeBins::INSTANT);
+        let moving_drawn = style.object.draw.then_some(object_layer);
+        let (stills, raster) = rasterize(&object_footprints[..stills], &target, &TimeBins::INSTANT);
         stats.add_raster(&raster);
-        layer
-    }
-    .with_opacity(style.object.opacity as f32);
+        match moving_drawn {
+            Some(layer) => layer.faded_beyond(&stills, opacity),
+            None => stills,
+        }
+    };
     // Each layer is made when it is drawn over the image, and dropped after: the image holds
     // at most the object's layer and one other besides itself.
     let mut image = Framebuffer::filled(width, height, background);
@@ -366,20 +376,43 @@ fn before_flash(shutter: &Shutter, flash: f64, offset: f64, length: f64) -> Wind
     [start, end]
 }
 
-/// `window` cut into `copies` equal slots, each drawn over its last `duty` share.
+/// `window` cut into `copies` equal slots, each drawn over its last `duty` share, and over at
+/// least the last step of time before the slot's end that f64 can tell (a duty too small to move
+/// the start by that much is a sharp ghost, not nothing).
 fn copy_windows([start, end]: Window, copies: u32, duty: f64) -> Vec<Window> {
     let slot = (end - start) / f64::from(copies);
     (1..=copies)
         .map(|k| {
             let slot_end = start + slot * f64::from(k);
-            [slot_end - slot * duty, slot_end]
+            [(slot_end - slot * duty).min(slot_end.next_down()), slot_end]
         })
         .collect()
 }
 
+/// How finely a stretch of time within a window is cut: into pieces no longer than `whole` /
+/// `pieces`.
+#[derive(Clone, Copy)]
+struct Fineness {
+    /// The window's length.
+    whole: f64,
+    /// Pieces of the whole window.
+    pieces: f64,
+}
+
+impl Fineness {
+    /// Pieces of a stretch `length` long within the window: at most [`Fineness::pieces`], however
+    /// short the window (a window of a few subnormals has no finite piece length).
+    fn of(self, length: f64) -> usize {
+        (self.pieces * (length / self.whole))
+            .ceil()
+            .max(1.0)
+            .min(self.pieces) as usize
+    }
+}
+
 /// Times cutting `window` at the plan's sub-segment ends (so trails bend along arcs as the blur's
-/// ellipses do) and into pieces no longer than `max_piece`.
-fn times_within(segments: &[[f64; 2]], [start, end]: Window, max_piece: f64) -> Vec<f64> {
+/// ellipses do) and each stretch between into pieces as `fineness` says.
+fn times_within(segments: &[[f64; 2]], [start, end]: Window, fineness: Fineness) -> Vec<f64> {
     let mut cuts = vec![start];
     cuts.extend(
         segments
@@ -390,7 +423,7 @@ fn times_within(segments: &[[f64; 2]], [start, end]: Window, max_piece: f64) -> 
     cuts.push(end);
     let mut times = vec![start];
     for pair in cuts.windows(2) {
-        let k = ((pair[1] - pair[0]) / max_piece).ceil().max(1.0) as usize;
+        let k = fineness.of(pair[1] - pair[0]);
         times.extend((1..=k).map(|i| pair[0] + (pair[1] - pair[0]) * i as f64 / k as f64));
     }
     times
@@ -408,37 +441,56 @@ struct TrailContext<'a> {
     exact_streaks: bool,
 }
 
-/// Which of the surfels seen at the flash as `views` emit a trail (counting those that do not,
-/// and why, into `hint`), thinned to the trail's density.
-fn emitters(
-    views: &[Option<SurfelView>],
-    trail: &Trail,
-    object_layer: &Layer,
-    hint: &mut HintStats,
-) -> Vec<bool> {
-    let emits: Vec<bool> = views
+/// How a surfel is seen at the flash.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Seen {
+    /// Off screen, behind the near plane, or culled.
+    Not,
+    /// Facing away from the camera.
+    BackFacing,
+    /// Facing the camera, behind the visible surface of the object image.
+    Hidden,
+    /// Facing the camera and on the visible surface.
+    Visible,
+}
+
+/// How each of the surfels whose views at the flash are `views` is seen there.
+fn seen_at_flash(views: &[Option<SurfelView>], object_layer: &Layer) -> Vec<Seen> {
+    views
         .iter()
-        .map(|view| {
-            let Some(view) = view else { return false };
-            match trail.emitters {
-                Emitters::All => true,
-                _ if !(view.facing > 0.0) => {
+        .map(|view| match view {
+            None => Seen::Not,
+            Some(v) if !(v.facing > 0.0) => Seen::BackFacing,
+            Some(v) if is_hidden(&v.splat, object_layer) => Seen::Hidden,
+            Some(_) => Seen::Visible,
+        })
+        .collect()
+}
+
+/// Which of the surfels seen at the flash as `seen` emit a trail, thinned to the trail's density
+/// (counting those that do and those that do not, and why, into `hint`).
+fn emitters(seen: &[Seen], trail: &Trail, hint: &mut HintStats) -> Vec<bool> {
+    seen.iter()
+        .enumerate()
+        .map(|(i, &seen)| {
+            let emits = match (trail.emitters, seen) {
+                (_, Seen::Not) => false,
+                (Emitters::All, _) => true,
+                (_, Seen::BackFacing) => {
                     hint.back_facing += 1;
                     false
                 }
-                Emitters::Visible if is_hidden(&view.splat, object_layer) => {
+                (Emitters::Visible, Seen::Hidden) => {
                     hint.hidden += 1;
                     false
                 }
                 _ => true,
-            }
+            };
+            let sampled = is_sampled(i, trail.density);
+            hint.sparse += usize::from(emits && !sampled);
+            hint.emitting += usize::from(emits && sampled);
+            emits && sampled
         })
-        .collect();
-    hint.emitting += emits.iter().filter(|&&e| e).count();
-    emits
-        .iter()
-        .enumerate()
-        .map(|(i, &e)| e && is_sampled(i, trail.density))
         .collect()
 }
 
@@ -449,7 +501,7 @@ fn object_trails(
     (object, surfels): (&Object, &[Surfel]),
     segments: &[[f64; 2]],
     copies: &[Window],
-    max_piece: f64,
+    fineness: Fineness,
     emits: &[bool],
     out: &mut Vec<Footprint>,
 ) -> Culled {
@@ -459,7 +511,7 @@ fn object_trails(
     let mut times = Vec::new();
     let mut pieces = Vec::new();
     for &copy in copies {
-        let copy_times = times_within(segments, copy, max_piece);
+        let copy_times = times_within(segments, copy, fineness);
         let first = times.len();
         let span = copy[1] - copy[0];
         let chained = copy_times.len() > 2;
@@ -598,15 +650,16 @@ struct LineStart {
     surfel: usize,
 }
 
-/// The newest ends, at time `end_time`, of the paths of the emitting points of object `object`
-/// that the style selects (by how they are seen at the flash, `views`).
+/// The newest ends, at time `end_time`, of the paths of the points of object `object` visible at
+/// the flash (`seen`) that the style selects by how they are seen there (`views`): whatever the
+/// trail's emitters and density, which are the trail's own.
 fn line_starts(
     scene: &Scene,
     look: &SpeedLines,
     object: usize,
     end_time: f64,
     views: &[Option<SurfelView>],
-    emits: &[bool],
+    seen: &[Seen],
 ) -> Vec<LineStart> {
     let surfels = scene.objects[object].surfels();
     let motion = &scene.objects[object].motion;
@@ -614,7 +667,7 @@ fn line_starts(
     (0..surfels.len())
         .into_par_iter()
         .filter(|&i| {
-            emits[i]
+            seen[i] == Seen::Visible
                 && views[i].is_some_and(|v| match look.select {
                     Select::Silhouette => v.facing < SILHOUETTE_COSINE,
                     Select::Sample => true,
@@ -671,11 +724,11 @@ fn speed_line(
     window: Window,
     surfel: usize,
 ) -> Option<SpeedLine> {
-    let times = times_within(
-        segments,
-        window,
-        (window[1] - window[0]) / LINE_SAMPLES as f64,
-    );
+    let fineness = Fineness {
+        whole: window[1] - window[0],
+        pieces: LINE_SAMPLES as f64,
+    };
+    let times = times_within(segments, window, fineness);
     let mut points: Vec<DVec2> = times
         .iter()
         .rev()
