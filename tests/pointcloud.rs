@@ -57,8 +57,7 @@ fn a_cloud_declaring_more_points_than_the_budget_is_refused_before_its_points_ar
     );
     let budget = streak::surfels::Budget::new(1000).unwrap();
     let error = Scene::parse_within(&scene_text, &dir.join("scene.toml"), budget)
-        .err()
-        .expect("a cloud over the budget")
+        .expect_err("a cloud over the budget")
         .to_string();
     std::fs::remove_dir_all(&dir).unwrap();
     assert!(

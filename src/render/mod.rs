@@ -33,7 +33,7 @@ pub use abuffer::MAX_FRAGMENTS_PER_PIXEL;
 pub use blur::{time_bins_for, BlurStats, SHORT_PATH_PX};
 pub(crate) use hint::trail_window;
 pub use hint::HintStats;
-pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS};
+pub use kernel3d::{KernelStats, Visibility, MAX_KERNELS_PER_PASS, SHAPED_SUBFRAME_PX};
 pub use reference::ReferenceStats;
 pub use triangles::{Exposure, TriangleStats, MAX_SHADOWED_LIGHTS, MAX_TRIANGLE_ITEMS};
 

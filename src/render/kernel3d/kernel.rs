@@ -280,8 +280,8 @@ impl Prepared<'_> {
         near: f64,
     ) -> Option<Fragment> {
         let k = self.kernel;
-        // `depth0 + s·depth1` is the depth the ternary test compares; `offset` is how far that
-        // lies from the depth of the splat's centre, which decides the near plane.
+        // `depth0 + s·depth1` is the depth of the splat's centre at kernel time s, which decides
+        // the near plane; `offset(s)` is how far the depth the ternary test compares lies from it.
         let (quadratic, amplitude, depth0, depth1, offset, tolerance) = match &k.affine {
             Some(affine) => {
                 // (x − c − s h)ᵀ K (x − c − s h): a = hᵀKh, b = −dᵀKh, c = dᵀKd with d = x − c.
@@ -295,19 +295,24 @@ impl Prepared<'_> {
                     b: -form(d, h),
                     c: form(d, d),
                 };
-                // The plane's depth at the pixel; as for EWA footprints (project.rs) it moves
-                // across the pre-filter's reach, which the ternary test must allow, but it is
-                // taken no farther than the disc's own depth range. A splat seen nearly edge-on
-                // has a steep plane: unbounded, its depth a pixel away landed metres in front of
-                // or behind the surface, between other surfaces.
-                let limit = affine.depth_reach;
-                let offset = affine.depth_gradient.dot(d).clamp(-limit, limit);
+                // The plane's depth at the pixel, under the centre as it is at kernel time s (the
+                // plane slides with it, as a motion footprint's does: project.rs); as for EWA
+                // footprints it moves across the pre-filter's reach, which the ternary test must
+                // allow, but it is taken no farther than the disc's own depth range. A splat seen
+                // nearly edge-on has a steep plane: unbounded, its depth a pixel away landed
+                // metres in front of or behind the surface, between other surfaces.
+                let offset = Offset::Plane {
+                    gradient: affine.depth_gradient,
+                    from_centre: d,
+                    half_motion: h,
+                    limit: affine.depth_reach,
+                };
                 let reach = CUTOFF_SIGMAS * PREFILTER_VARIANCE_PX2.sqrt();
                 let tolerance = k.tolerance + affine.depth_gradient.length() * reach;
                 (
                     quadratic,
                     affine.amplitude,
-                    affine.depth + offset,
+                    affine.depth,
                     affine.half_depth_change,
                     offset,
                     tolerance,
@@ -340,20 +345,27 @@ impl Prepared<'_> {
                 // Hits of one surface's neighbouring splat planes spread in depth as the ray
                 // grazes them.
                 let tolerance = k.tolerance / cosine.max(MIN_TOLERANCE_COSINE);
-                (quadratic, k.amplitude, depth0, depth1, 0.0, tolerance)
+                (
+                    quadratic,
+                    k.amplitude,
+                    depth0,
+                    depth1,
+                    Offset::None,
+                    tolerance,
+                )
             }
         };
         // The part of the kernel's time [−1, 1] in front of the near plane.
         let [k0, k1] = k.mass;
         let (mut lo, mut hi) = (-1.0f64, 1.0f64);
         if depth1 != 0.0 {
-            let crossing = (near - (depth0 - offset)) / depth1;
+            let crossing = (near - depth0) / depth1;
             if depth1 > 0.0 {
                 lo = lo.max(crossing);
             } else {
                 hi = hi.min(crossing);
             }
-        } else if !(depth0 - offset >= near) {
+        } else if !(depth0 >= near) {
             return None;
         }
         let [s0, s1] = quadratic.support(CUTOFF_SQ, lo, hi)?;
@@ -365,13 +377,44 @@ impl Prepared<'_> {
                 primitive: quadratic.primitive([s0, s1]),
                 scale: amplitude * 0.5 * (k1 - k0),
             },
-            depth: [depth0 + s0 * depth1, depth0 + s1 * depth1],
+            depth: [s0, s1].map(|s| depth0 + s * depth1 + offset.at(s)),
             colour: k.colour,
             tolerance,
             id: self.index,
         };
         (fragment.mass[1] > fragment.mass[0] && fragment.depth.iter().all(|d| d.is_finite()))
             .then_some(fragment)
+    }
+}
+
+/// How far the depth a fragment's ternary test compares lies from the depth of its splat's
+/// centre, at kernel time s.
+enum Offset {
+    /// Nowhere: the depth is the ray's hit on the splat's plane.
+    None,
+    /// The affine stand-in's plane at the pixel, `from_centre` away from the centre at s = 0,
+    /// while the centre moves by `half_motion` per unit of s; at most `limit` either way.
+    Plane {
+        gradient: DVec2,
+        from_centre: DVec2,
+        half_motion: DVec2,
+        limit: f64,
+    },
+}
+
+impl Offset {
+    fn at(&self, s: f64) -> f64 {
+        match *self {
+            Offset::None => 0.0,
+            Offset::Plane {
+                gradient,
+                from_centre,
+                half_motion,
+                limit,
+            } => gradient
+                .dot(from_centre - s * half_motion)
+                .clamp(-limit, limit),
+        }
     }
 }
 
@@ -492,6 +535,52 @@ pub(super) fn hull_overlaps(hull: &[DVec2], rect: [f64; 4]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_affine_kernel_s_depth_is_its_plane_s_under_the_centre_as_it_moves() {
+        // A nearly edge-on splat drawn by its affine stand-in slides 20 px along x over a plane
+        // whose depth rises 0.1 per px: at a pixel 5 px right of the middle, the depth the
+        // ternary test compares is the plane's under the centre where it is at each end of the
+        // fragment, within the disc's reach of 0.3 (it was the plane's under the middle
+        // position, 5.3 at both ends).
+        let affine = AffineKernel {
+            centre: DVec2::new(50.0, 50.0),
+            half_motion: DVec2::new(10.0, 0.0),
+            conic: [0.25, 0.0, 0.25],
+            amplitude: 1.0,
+            depth: 5.0,
+            half_depth_change: 0.0,
+            depth_gradient: DVec2::new(0.1, 0.0),
+            depth_reach: 0.3,
+        };
+        let kernel = Kernel {
+            centre: DVec3::new(0.0, 0.0, -5.0),
+            half_motion: DVec3::ZERO,
+            axes: [DVec3::X, DVec3::Z],
+            amplitude: 1.0,
+            colour: [1.0; 3],
+            mass: [0.0, 1.0],
+            tolerance: 0.01,
+            affine: Some(affine),
+        };
+        let ray = DVec3::new(0.0, 0.0, -1.0);
+        let fragment = (kernel.prepare(0))
+            .fragment((ray, 1.0), DVec2::new(55.0, 50.0), 0.1)
+            .unwrap();
+        for (m, depth) in fragment.mass.into_iter().zip(fragment.depth) {
+            let s = 2.0 * m - 1.0;
+            let plane = 5.0 + (0.1 * (5.0 - 10.0 * s)).clamp(-0.3, 0.3);
+            assert!(
+                (depth - plane).abs() < 1e-12,
+                "s = {s}: {depth} against {plane}"
+            );
+        }
+        assert!(
+            fragment.depth[0] > fragment.depth[1],
+            "{:?}",
+            fragment.depth
+        );
+    }
 
     fn is_convex_and_contains(hull: &[DVec2], points: &[DVec2]) -> bool {
         let n = hull.len();
