@@ -146,7 +146,11 @@ impl Kernel {
         let (values, vectors) = widened.eigen();
         let limit = MAX_PREFILTER_STRETCH * MAX_PREFILTER_STRETCH;
         let view_area = axes[0].cross(axes[1]).length();
-        let affine = if values[0] > limit {
+        // The affine stand-in projects the chord's ends; one that crosses the near plane is
+        // ray-traced instead, whose fragments keep the part in front (dropped, the whole
+        // sub-frame of a nearly edge-on splat was lost).
+        let in_front = [p0, p1].iter().all(|p| -p.z >= camera.near);
+        let affine = if values[0] > limit && in_front {
             let normal = axes[0].cross(axes[1]);
             let reach = CUTOFF_SIGMAS * axes[0].length().max(axes[1].length());
             let gradient = plane_depth_gradient(camera, centre, normal, depth, reach);
@@ -580,6 +584,43 @@ mod tests {
             "{:?}",
             fragment.depth
         );
+    }
+
+    #[test]
+    fn a_nearly_edge_on_splat_crossing_the_near_plane_keeps_the_part_in_front() {
+        // A splat nearly edge-on (its affine stand-in's case) moving from in front of the
+        // camera's near plane to behind it keeps a kernel, and rays through its path in front
+        // meet it.
+        let camera = Camera::new(DVec3::ZERO, -DVec3::Z, DVec3::Y, 60.0, 64, 64)
+            .unwrap()
+            .with_near(0.5)
+            .unwrap();
+        let tilt = 89.9f64.to_radians();
+        let axes = [
+            DVec3::X * 0.05,
+            DVec3::new(0.0, tilt.cos(), tilt.sin()) * 0.05,
+        ];
+        // Below the eye, so that rays below the image's middle meet its plane in front.
+        let (p0, p1) = (DVec3::new(0.02, -0.1, -3.0), DVec3::new(0.02, -0.1, -0.2));
+        let edge_on = |p1: DVec3| Kernel::new(&camera, p0, p1, axes, 1.0, [1.0; 3], [0.0, 1.0]);
+        let in_front = edge_on(DVec3::new(0.02, -0.1, -0.6)).expect("in front all along");
+        assert!(in_front.affine.is_some(), "the affine stand-in's case");
+        let crossing = edge_on(p1).expect("crossing the near plane");
+        let (bounds, _) = crossing.screen_bound(&camera).expect("on screen");
+        let prepared = crossing.prepare(0);
+        let centre = DVec2::new(32.0, 32.0);
+        let hits = (bounds[0]..bounds[2])
+            .flat_map(|x| (bounds[1]..bounds[3]).map(move |y| (x, y)))
+            .filter(|&(x, y)| {
+                let pixel = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let ray =
+                    ((pixel - centre) / camera.focal_px).extend(-1.0) * DVec3::new(1.0, -1.0, 1.0);
+                prepared
+                    .fragment((ray, ray.length()), pixel, camera.near)
+                    .is_some_and(|f| f.depth.iter().all(|&d| d >= camera.near))
+            })
+            .count();
+        assert!(hits > 0);
     }
 
     fn is_convex_and_contains(hull: &[DVec2], points: &[DVec2]) -> bool {
