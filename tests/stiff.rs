@@ -888,6 +888,37 @@ mod stiff {
         }
     }
 
+    #[test]
+    fn a_point_in_front_only_between_two_keyframes_behind_the_near_plane_is_drawn() {
+        // A small patch orbits the eye at radius 1, 170° about the vertical axis: behind the near
+        // plane (0.1) at both keyframes, straight in front of the camera at mid-exposure. The plan
+        // once saw no crossing (both ends behind), kept one piece, and every motion renderer
+        // dropped it: the patch was gone.
+        let camera = Camera::new(DVec3::ZERO, -DVec3::Z, DVec3::Y, 60.0, 64, 64)
+            .unwrap()
+            .with_near(0.1)
+            .unwrap();
+        let key = |degrees: f64| Pose {
+            rotation: DQuat::from_rotation_y(degrees.to_radians()),
+            ..Pose::IDENTITY
+        };
+        let surfel = Surfel::isotropic(DVec3::new(0.0, 0.0, -1.0), DVec3::Z, 1e-4, None, [1.0; 3]);
+        let orbit = motion(&[(0.0, key(-85.0)), (1.0, key(85.0))]);
+        let scene = scene(camera, vec![object(vec![surfel], orbit)]);
+        let plan = Plan::new(&scene, &Method::BLUR).unwrap();
+        let ObjectMotion::Moving { segments, .. } = &plan.objects[0].motion else {
+            panic!("the patch moves");
+        };
+        assert!(segments.len() > 1, "{segments:?}");
+        let reference = energy(&draw(&scene, &Method::Reference { samples: 256 }));
+        let blur = energy(&draw(&scene, &Method::BLUR));
+        assert!(reference > 0.0);
+        assert!(
+            (blur - reference).abs() < 0.1 * reference,
+            "blur {blur} against the reference's {reference}"
+        );
+    }
+
     /// Whether a pixel shows a red surface in front of a blue one, opaque.
     fn hides(p: [f32; 3]) -> bool {
         let (front, behind) = (f64::from(p[0]), f64::from(p[2]));
