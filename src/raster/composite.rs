@@ -302,6 +302,7 @@ impl<const B: usize> PixelState<B> {
                 // What was held aside starts the next group; the group just closed left its
                 // sums empty for holding.
                 std::mem::swap(&mut self.group, &mut self.held);
+                self.reweigh_held(bins);
             }
             // The group just closed lies in front of `f`.
             if B > 1 {
@@ -316,6 +317,30 @@ impl<const B: usize> PixelState<B> {
         }
         self.members(held).count(f, w, seen, depth, &span, bins);
         Counted { seen, held }
+    }
+
+    /// Weigh the open group, footprints that were held aside, by what the groups closed so far
+    /// leave of their coverage, not by what they left when each arrived: the group that closed
+    /// after them lies in front of them. Their weight Σ w·seen becomes Σ over bins of coverage ×
+    /// transmittance (exact, as each footprint's `seen` is its coverage's share per bin), and
+    /// their colour sum scales with it (exact for one footprint; for several, as if each one's
+    /// share changed alike). A tail hidden all its time then has no say in the surface it joins.
+    fn reweigh_held(&mut self, bins: &TimeBins<B>) {
+        let group = &mut self.group;
+        if B == 1 || !(group.weight > 0.0) {
+            return;
+        }
+        group.settle_whole_bins(bins);
+        let [first, last] = group.bins;
+        let seen: f32 = (group.coverage[first..last].iter())
+            .zip(&self.transmittance[first..last])
+            .map(|(&coverage, &t)| coverage * t)
+            .sum();
+        let scale = larger(seen, 0.0) / group.weight;
+        group.weight *= scale;
+        for c in &mut group.colour {
+            *c *= scale;
+        }
     }
 
     /// The share of `span` that the groups closed so far leave unoccluded, each bin counted by
@@ -472,6 +497,7 @@ impl<const B: usize> PixelState<B> {
         if self.held.counts_any() {
             // Faint footprints behind the last group, with none after them to join.
             self.group = self.held;
+            self.reweigh_held(bins);
             self.close_group(bins);
         }
         (self.colour, self.remaining, self.front_depth)
@@ -785,6 +811,29 @@ mod tests {
         let (half_red, _) = layer(0.5, [1.0, 0.0, 0.0], 1.0, [0.0, 1.0]);
         let p = composite_marked(&[(half_red, 0.5, false), (green, 0.02, true)], &bins);
         assert_near(p, [0.5, 0.01, 0.49], "");
+    }
+
+    #[test]
+    fn a_faint_tail_hidden_all_its_time_has_no_say_in_the_surface_it_joins() {
+        // Red (depth 1) covers the first half of the exposure in two footprints; the faint tail
+        // of a blue splat (depth 2) over the same half arrives between them and is held aside;
+        // green (depth 2) covers all of the exposure. Blue is hidden by red for all its time: the
+        // pixel is half red, half green. Weighted by what it saw on arrival (all of its time),
+        // the tail took 7.4 % of green's share: (0.5, 0.463, 0.037).
+        let bins = TimeBins::<16>::over(&Shutter::default());
+        let (red, _) = layer(0.25, [1.0, 0.0, 0.0], 1.0, [0.0, 0.5]);
+        let (blue, _) = layer(0.04, [0.0, 0.0, 1.0], 2.0, [0.0, 0.5]);
+        let (green, _) = layer(1.0, [0.0, 1.0, 0.0], 2.0, [0.0, 1.0]);
+        let p = composite_marked(
+            &[
+                (red, 0.25, false),
+                (blue, 0.04, true),
+                (red, 0.25, false),
+                (green, 1.0, false),
+            ],
+            &bins,
+        );
+        assert_near(p, [0.5, 0.5, 0.0], "");
     }
 
     #[test]
