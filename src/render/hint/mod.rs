@@ -159,14 +159,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
         whole: window[1] - window[0],
         pieces: if gradient { GRADIENT_PIECES } else { 1.0 },
     };
-    let fastest = plan
-        .objects
-        .iter()
-        .filter_map(|o| match o.motion {
-            ObjectMotion::Moving { path_px, .. } => Some(path_px),
-            ObjectMotion::Still => None,
-        })
-        .fold(0.0, f64::max);
+    let fastest = plan.longest_path_px();
 
     let mut trail_footprints = Vec::new();
     let mut starts = Vec::new();

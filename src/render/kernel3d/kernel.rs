@@ -608,13 +608,11 @@ mod tests {
         let crossing = edge_on(p1).expect("crossing the near plane");
         let (bounds, _) = crossing.screen_bound(&camera).expect("on screen");
         let prepared = crossing.prepare(0);
-        let centre = DVec2::new(32.0, 32.0);
         let hits = (bounds[0]..bounds[2])
             .flat_map(|x| (bounds[1]..bounds[3]).map(move |y| (x, y)))
             .filter(|&(x, y)| {
                 let pixel = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                let ray =
-                    ((pixel - centre) / camera.focal_px).extend(-1.0) * DVec3::new(1.0, -1.0, 1.0);
+                let ray = camera.ray(pixel.x, pixel.y);
                 prepared
                     .fragment((ray, ray.length()), pixel, camera.near)
                     .is_some_and(|f| f.depth.iter().all(|&d| d >= camera.near))

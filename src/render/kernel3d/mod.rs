@@ -347,16 +347,12 @@ fn subframe_times(
         Subframes::Equal(n) => equal(n),
         Subframes::Planned { .. } => {
             let mut times = vec![open, close];
-            let mut fastest: f64 = 0.0;
             for object in &plan.objects {
-                if let ObjectMotion::Moving {
-                    segments, path_px, ..
-                } = &object.motion
-                {
+                if let ObjectMotion::Moving { segments, .. } = &object.motion {
                     times.extend(segments.iter().map(|s| s[1]));
-                    fastest = fastest.max(*path_px);
                 }
             }
+            let fastest = plan.longest_path_px();
             if scene.shutter.shape != ShutterShape::Box && fastest > SHAPED_SUBFRAME_PX {
                 // An even count, so that a tent's peak at mid-exposure is a cut.
                 let n = (fastest / SHAPED_SUBFRAME_PX / 2.0)
@@ -523,14 +519,9 @@ fn resolve_tile(
 ) -> TileResult {
     let camera = &scene.camera;
     let w = (x1 - x0) as usize;
-    let centre = DVec2::new(f64::from(camera.width), f64::from(camera.height)) * 0.5;
     // A pixel's ray and its length, worked out once a row for all the kernels that reach it.
     let ray = |x: u32, y: u32| {
-        let ray = DVec3::new(
-            (f64::from(x) + 0.5 - centre.x) / camera.focal_px,
-            -(f64::from(y) + 0.5 - centre.y) / camera.focal_px,
-            -1.0,
-        );
+        let ray = camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
         (ray, ray.length())
     };
     let bins = SubFrameBins::new(windows);
