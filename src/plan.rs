@@ -1018,6 +1018,13 @@ fn mesh_lod(
     let (shared, speed_px) = match SIMPLIFIED_IN_VIEW.find(|v| *v == view) {
         Some(found) => found,
         None => {
+            // Welding would blend the colours either side of a seam.
+            if speed::has_colour_seams(mesh) {
+                return Ok((
+                    MeshLod::Full("colour seams (vertices at one place with different colours)"),
+                    None,
+                ));
+            }
             let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
             let limits = motion.limits(&scene.mesh_detail);
             let speed_px = motion

@@ -12,7 +12,7 @@ use streak::lod::Lod;
 use streak::scene::{Camera, Keyframe, Motion, Object, Pose, TriangleMesh};
 use streak::simplify::speed::DetailRule;
 use streak::simplify::{
-    direction_weight, simplify, Options, Simplified, Weighting, BLOCK_VERTICES,
+    direction_weight, simplify, Limits, Options, Simplified, Weighting, BLOCK_VERTICES,
 };
 use streak::surfels::{from_mesh, Colouring, Mesh};
 use streak::{Method, Plan, Scene};
@@ -606,5 +606,164 @@ fn the_plan_simplifies_moving_meshes_by_their_speed_and_leaves_still_ones_alone(
         flip_free_rmse.sqrt() < 0.03,
         "RMSE {}",
         flip_free_rmse.sqrt()
+    );
+}
+
+/// A collapse that takes away every face its two ends have would leave nothing of a piece: an
+/// open mesh reaches target 0 with faces left, and a small open quad beside a large grid, moving
+/// too slowly for its faces to grow past their limits, keeps a face.
+#[test]
+fn no_piece_of_an_open_mesh_is_collapsed_to_nothing() {
+    let one = Mesh {
+        positions: vec![DVec3::ZERO, DVec3::X, DVec3::Y],
+        triangles: vec![[0, 1, 2]],
+    };
+    assert_eq!(run(&one, 0, Weighting::Isotropic).mesh.triangles.len(), 1);
+    assert!(!run(&grid(4), 0, Weighting::Isotropic)
+        .mesh
+        .triangles
+        .is_empty());
+    let mut mesh = grid(4);
+    let base = mesh.positions.len() as u32;
+    let quad = grid(1);
+    mesh.positions.extend(
+        quad.positions
+            .iter()
+            .map(|&p| DVec3::new(5.0, 0.0, 0.0) + 0.01 * p),
+    );
+    mesh.triangles
+        .extend(quad.triangles.iter().map(|t| t.map(|v| v + base)));
+    let options = Options {
+        target_faces: 0,
+        weighting: Weighting::Isotropic,
+        limits: Some(Limits {
+            per_vertex: vec![0.1; mesh.positions.len()],
+        }),
+    };
+    let out = simplify(&mesh, &options, (&[], 0), &mut |_| {}).unwrap();
+    let on_quad = out
+        .mesh
+        .triangles
+        .iter()
+        .filter(|t| out.mesh.positions[t[0] as usize].x > 4.0)
+        .count();
+    assert!(on_quad >= 1, "the small quad is gone: {:?}", out.stats);
+}
+
+/// Scaling a mesh by a power of two scales every cost by its fourth power exactly, so no
+/// collapse may change, down to sizes whose costs fall below f32's range (2⁻³⁰: costs near
+/// 10⁻³⁸ and less) and up to sizes whose costs pass it.
+#[test]
+fn a_mesh_scaled_by_a_power_of_two_collapses_the_same_way() {
+    let mut rippled = grid(24);
+    for p in &mut rippled.positions {
+        p.z = 0.05 * (9.0 * p.x).sin() * (7.0 * p.y).sin() + 0.02 * (23.0 * p.x * p.y).cos();
+    }
+    let corners = |out: &Simplified, scale: f64| {
+        let mut v: Vec<[i64; 3]> = out
+            .mesh
+            .positions
+            .iter()
+            .map(|&p| (p / scale * 1e6).round().as_i64vec3().to_array())
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    let unscaled = corners(&run(&rippled, 150, Weighting::Isotropic), 1.0);
+    for exponent in [-30, -25, -20, 20, 25, 30, 35] {
+        let scale = 2f64.powi(exponent);
+        let mut scaled = rippled.clone();
+        for p in &mut scaled.positions {
+            *p *= scale;
+        }
+        let out = run(&scaled, 150, Weighting::Isotropic);
+        assert!(corners(&out, scale) == unscaled, "scaled by 2^{exponent}");
+    }
+}
+
+/// Coordinates near f64's limit stay finite through the quadrics and placements.
+#[test]
+fn huge_coordinates_stay_finite() {
+    let mut mesh = grid(4);
+    for p in &mut mesh.positions {
+        *p *= 1e200;
+    }
+    let out = run(&mesh, 4, Weighting::Isotropic);
+    assert!(out.mesh.positions.iter().all(|p| p.is_finite()));
+}
+
+/// eq. 4's motion direction is named by the error, not turned into NaN costs (infinite) or
+/// isotropic weights (zero).
+#[test]
+fn a_motion_direction_that_is_not_finite_or_is_zero_is_refused() {
+    for direction in [DVec3::new(f64::INFINITY, 0.0, 0.0), DVec3::ZERO] {
+        let options = Options {
+            target_faces: 8,
+            weighting: Weighting::Direction(direction),
+            limits: None,
+        };
+        let error = simplify(&grid(4), &options, (&[], 0), &mut |_| {}).unwrap_err();
+        assert!(error.to_string().contains("direction"), "{error}");
+    }
+}
+
+/// A cube written with each triangle's corners apart, each side its own colour (as exporters
+/// split vertices at colour seams), moving too slowly for any collapse: welding for the
+/// simplifier must not give one side's colour to the corners of the side next to it.
+#[test]
+fn a_slow_mesh_with_colour_seams_keeps_each_corner_colour() {
+    let cube = Mesh::cuboid(DVec3::ONE);
+    let mut split = Mesh::default();
+    let mut colours = Vec::new();
+    for t in &cube.triangles {
+        let [a, b, c] = t.map(|v| cube.positions[v as usize]);
+        let colour = ((b - a).cross(c - a).normalize() * 0.4 + 0.5)
+            .as_vec3()
+            .to_array();
+        let base = split.positions.len() as u32;
+        split.positions.extend([a, b, c]);
+        split.triangles.push([base, base + 1, base + 2]);
+        colours.extend([colour; 3]);
+    }
+    let triangles =
+        TriangleMesh::from_parts(split.positions.clone(), split.triangles.clone(), colours)
+            .unwrap();
+    let surfels = from_mesh(&split, 600, false).unwrap();
+    let camera = Camera::new(
+        DVec3::new(0.0, 0.0, 6.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        30.0,
+        160,
+        120,
+    )
+    .unwrap();
+    let at = |x: f64| Keyframe {
+        t: (x + 0.005) / 0.01,
+        pose: Pose {
+            translation: DVec3::new(x, 0.0, 0.0),
+            ..Pose::IDENTITY
+        },
+    };
+    let motion = Motion::new(vec![at(-0.005), at(0.005)]).unwrap();
+    let scene = Scene::new(camera).with_object(Object::triangles(
+        "cube",
+        triangles.clone(),
+        surfels,
+        motion,
+    ));
+    let plan = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Auto).unwrap();
+    let drawn = plan.mesh_of(0).unwrap();
+    let corner_colours = |m: &TriangleMesh| -> Vec<[f32; 3]> {
+        m.triangles
+            .iter()
+            .flat_map(|t| t.map(|v| m.colours[v as usize]))
+            .collect()
+    };
+    assert_eq!(drawn.triangles.len(), triangles.triangles.len());
+    assert!(
+        corner_colours(drawn) == corner_colours(&triangles),
+        "{}",
+        plan.explain(None)
     );
 }

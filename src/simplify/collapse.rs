@@ -105,6 +105,10 @@ pub(super) struct Vertices {
     pub motions: Vec<DVec3>,
     /// Longest perimeter, object units, of a face touching each vertex.
     pub limits: Option<Vec<f64>>,
+    /// A power of two near the inverse fourth power of the mesh's size: costs (areas times
+    /// squared distances) are queued times this, so that the queue's f32 bins see the same
+    /// numbers at any scale (see [`cost_scale`]).
+    pub cost_scale: f64,
 }
 
 /// The vertices a collapser works on, borrowed from [`Vertices`] (all of them, or a block's run
@@ -115,6 +119,7 @@ pub(super) struct VerticesMut<'a> {
     /// Empty when there are no motions per vertex.
     pub motions: &'a mut [DVec3],
     pub limits: Option<&'a mut [f64]>,
+    pub cost_scale: f64,
 }
 
 impl<'a> VerticesMut<'a> {
@@ -137,12 +142,14 @@ impl<'a> VerticesMut<'a> {
                 carried,
                 motions,
                 limits,
+                cost_scale: self.cost_scale,
             },
             VerticesMut {
                 points: points_rest,
                 carried: carried_rest,
                 motions: motions_rest,
                 limits: limits_rest,
+                cost_scale: self.cost_scale,
             },
         )
     }
@@ -156,6 +163,7 @@ impl Vertices {
             carried: &mut self.carried,
             motions: &mut self.motions,
             limits: self.limits.as_deref_mut(),
+            cost_scale: self.cost_scale,
         }
     }
 
@@ -171,6 +179,7 @@ impl Vertices {
         limits: Option<Vec<f64>>,
     ) -> (Vertices, Edges, usize) {
         let n = positions.len();
+        let cost_scale = cost_scale(&positions);
         let face_plane = |f: usize| {
             let [a, b, c] = faces[f].map(|i| positions[i as usize]);
             ((b - a).cross(c - a), a)
@@ -229,6 +238,7 @@ impl Vertices {
             carried,
             motions,
             limits,
+            cost_scale,
         };
         (vertices, Edges::from_counted(edges), non_manifold_edges)
     }
@@ -481,6 +491,7 @@ impl<'a> Collapser<'a> {
     /// The heap entry for edge (a, b), or `None` when it may not collapse (see `placement`).
     fn candidate(&self, a: u32, b: u32) -> Option<(f64, Entry)> {
         let (cost, _) = self.placement(a as usize, b as usize)?;
+        let cost = cost * self.vertices.cost_scale;
         let stamp = self.version[a as usize] + self.version[b as usize];
         Some((cost, Entry { a, b, stamp }))
     }
@@ -574,7 +585,10 @@ impl<'a> Collapser<'a> {
             }
         }
         let faces_b = self.around.count[b] as usize;
-        if shared == 0 || shared > 2 {
+        // The merged vertex would keep no face: the collapse takes away the last faces of a
+        // piece (a lone triangle, or two faces that are all either end has), which no fold or
+        // detail limit check sees, as no face is left to reshape.
+        if shared == 0 || shared > 2 || faces_a + faces_b == 2 * shared {
             self.stats.topology_refusals += 1;
             return false;
         }
@@ -797,6 +811,26 @@ fn folds(old: [DVec3; 3], new: [DVec3; 3], first: Vec3) -> bool {
         || n_old.dot(n_new) < MAX_TURN_DEGREES.to_radians().cos() * l_old * l_new
         || (first != Vec3::ZERO
             && n_new.dot(first.as_dvec3()) < MAX_DRIFT_DEGREES.to_radians().cos() * l_new)
+}
+
+/// The power of two nearest 1 / d⁴, d the diagonal of `positions`' bounding box (1 for a mesh
+/// without extent). Costs are areas times squared distances, so a cost times this is the same
+/// number for the mesh at any scale, and it stays far from the f32 limits of the queue's bins
+/// (below 10⁻³⁸ costs all fell in one bin, above 10³⁸ in another). Being a power of two, it
+/// changes no collapse of a mesh whose costs were in range.
+fn cost_scale(positions: &[DVec3]) -> f64 {
+    let (lo, hi) = positions
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    let diagonal2 = (hi - lo).length_squared();
+    let scale = (-(2.0 * diagonal2.log2()).round().clamp(-1000.0, 1000.0)).exp2();
+    if scale.is_finite() && scale > 0.0 {
+        scale
+    } else {
+        1.0
+    }
 }
 
 /// The unit normal of each face (zero where it has no area), kept in single precision: it only

@@ -111,7 +111,8 @@ pub struct Simplified {
 /// hears the face count now and then.
 ///
 /// Errors: a position that is not finite, or a face corner past the vertices, named by index;
-/// `carried` of the wrong length; limits not one per vertex, or not positive.
+/// `carried` of the wrong length; limits not one per vertex, or not positive; a motion direction
+/// that is not finite or is zero, or motions not one finite one per vertex.
 pub fn simplify(
     mesh: &Mesh,
     options: &Options,
@@ -153,6 +154,14 @@ pub fn simplify(
             return Err(Error::invalid(
                 "limits",
                 format!("need one positive limit per vertex ({n})"),
+            ));
+        }
+    }
+    if let Weighting::Direction(d) = options.weighting {
+        if !(d.is_finite() && d != DVec3::ZERO) {
+            return Err(Error::invalid(
+                "weighting",
+                format!("direction {d}: must be finite and not the zero vector"),
             ));
         }
     }

@@ -2420,6 +2420,7 @@ impl ShadowTile {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lod::Lod;
 
     /// A square crossing a floor `passes` times in one exposure under a light from above, with a
     /// shadow map `map` texels a side.
@@ -2447,7 +2448,8 @@ mod tests {
             Object::triangles(name, triangles, surfels, Motion::new(keyframes).unwrap())
         };
         // The texels on the square's way hold up to two pieces a pass, the square's and the
-        // floor's between.
+        // floor's between, at full detail (`Lod::Off`: this fast, the level of detail draws the
+        // square as one triangle).
         let zigzag = (0..=passes)
             .map(|i| {
                 (
@@ -2485,7 +2487,7 @@ mod tests {
     #[test]
     fn a_shadow_map_over_its_budget_keeps_each_texels_longest_pieces_whatever_the_threads() {
         let scene = zigzag_over_floor(16, 20);
-        let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
+        let plan = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Off).unwrap();
         let prepared = prepared_light(&plan, plan.shadow_cameras[0].clone());
         let texel_lists = |o: &Occluders| -> Vec<Vec<[f64; 2]>> {
             o.tiles
@@ -2574,7 +2576,7 @@ mod tests {
         // 200 passes: up to 400 pieces on a texel and on an image sample under the path, past the
         // 256 a list held before and within 1,024, so no list is compressed and none dropped.
         let scene = zigzag_over_floor(16, 200);
-        let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
+        let plan = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Off).unwrap();
         let prepared = prepared_light(&plan, plan.shadow_cameras[0].clone());
         let lists = prepared.occluders_within(usize::MAX, false).unwrap().lists;
         assert!(lists.peak_per_texel > MIN_INTERVALS_PER_SAMPLE, "{lists:?}");
@@ -2591,7 +2593,7 @@ mod tests {
     fn a_shadow_map_over_its_budget_is_drawn_coarser_before_its_lists_are_cut() {
         // The same zig-zag in a 64² map, with a budget that its 32² map fits.
         let scene = zigzag_over_floor(64, 20);
-        let plan = Plan::new(&scene, &Method::ANALYTIC).unwrap();
+        let plan = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Off).unwrap();
         let camera = &plan.shadow_cameras[0];
         let pieces = |side: u32| {
             let camera = camera.resized(side, side).unwrap();
