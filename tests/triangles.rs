@@ -885,3 +885,46 @@ fn a_point_sampled_receiver_takes_its_colour_at_each_sample() {
         );
     }
 }
+
+#[test]
+fn a_face_turning_under_a_gaussian_shutter_is_lit_for_the_weighted_mean() {
+    // A square turning about y from −40° to 40° under light from +z (towards the camera):
+    // N·L = cos θ > 0 all along, so the centre's run is one piece with no cut, and its mean
+    // irradiance is cos(θ₀(2t − 1)) weighted by the shutter (a fine midpoint rule here). Three
+    // Gauss–Legendre points over the whole exposure weighted by a Gaussian of σ = 1/6 put 0.89
+    // of the weight on the middle node: 1.5·10⁻² too bright.
+    let turn = |degrees: f64| Pose {
+        rotation: DQuat::from_rotation_y(degrees.to_radians()),
+        ..Pose::IDENTITY
+    };
+    let theta = 40f64.to_radians();
+    for shape in [
+        streak::scene::ShutterShape::Box,
+        streak::scene::ShutterShape::Tent,
+        streak::scene::ShutterShape::Gaussian,
+    ] {
+        let shutter = streak::scene::Shutter::new(0.0, 1.0, shape).unwrap();
+        let s = lit(scene(33, 1), 0.0, DVec3::new(0.0, 0.0, 1.0), 1.0)
+            .with_shutter(shutter)
+            .with_object(object(
+                "turning",
+                &square(2.0),
+                [1.0; 3],
+                &[(0.0, turn(-40.0)), (0.5, turn(0.0)), (1.0, turn(40.0))],
+            ));
+        let n = 200_000;
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for i in 0..n {
+            let t = (f64::from(i) + 0.5) / f64::from(n);
+            let w = shutter.weight(t);
+            sum += w * (theta * (2.0 * t - 1.0)).cos();
+            weight += w;
+        }
+        let expected = sum / weight;
+        let p = pixel(&render(&s, &Method::ANALYTIC).image, 16, 16);
+        assert!(
+            (f64::from(p[0]) - expected).abs() < 1e-3,
+            "{shape:?}: {p:?} against {expected}"
+        );
+    }
+}

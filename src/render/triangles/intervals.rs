@@ -406,21 +406,31 @@ fn sweep(intervals: &[Interval], scratch: &mut ResolveScratch, out: &mut Vec<Int
         };
         let mut start = u;
         loop {
-            // The earliest time in (start, v) at which another line passes below the current one.
+            // The earliest time in [start, v) at which another line passes below the current
+            // one; of several at once, the one receding most slowly, which is nearest just
+            // after. One already as near at `start` (lines through one point, or nearer by the
+            // rounding of `start`) and receding more slowly takes over at once: each such step
+            // lowers the slope, so they end.
             let (z, slope) = (current.depth_at(start), current.slope());
             let mut next: Option<(f64, &Interval)> = None;
             for other in pieces() {
                 let gap = other.depth_at(start) - z;
                 let closing = slope - other.slope();
-                if closing > 0.0 && gap >= 0.0 {
-                    let when = start + gap / closing;
-                    if when > start && when < v && next.is_none_or(|(w, _)| when < w) {
+                if closing > 0.0 {
+                    let when = start + gap.max(0.0) / closing;
+                    if when < v
+                        && next.is_none_or(|(w, o)| {
+                            when < w || (when == w && other.slope() < o.slope())
+                        })
+                    {
                         next = Some((when, other));
                     }
                 }
             }
             let end = next.map_or(v, |(w, _)| w);
-            push_visible(out, first_out, current, [start, end]);
+            if end > start {
+                push_visible(out, first_out, current, [start, end]);
+            }
             match next {
                 Some((w, other)) => {
                     start = w;
@@ -749,5 +759,26 @@ mod tests {
         assert_eq!(out[0].t, [0.0, 0.4]);
         assert_eq!(out[0].item, 0);
         assert_eq!(out[1].t, [0.6, 0.9]);
+    }
+
+    /// Three lines through one point (t = 0.5, depth 2): after it the steepest is nearest. The
+    /// sweep steps from the flat one to whichever crossing it meets first in the active order,
+    /// and from there never sees the other (its gap at the crossing is 0).
+    #[test]
+    fn three_lines_through_one_point_hand_over_to_the_steepest() {
+        let flat = line([0.0, 1.0], [2.0, 2.0], 0);
+        let steep = line([0.0, 1.0], [3.0, 1.0], 1);
+        let mild = line([0.0, 1.0], [2.5, 1.5], 2);
+        for list in [
+            [flat, steep, mild],
+            [flat, mild, steep],
+            [mild, steep, flat],
+            [steep, mild, flat],
+        ] {
+            let out = resolved(&list);
+            let last = out.last().unwrap();
+            assert_eq!(last.item, 1, "{list:?} -> {out:?}");
+            assert!((last.t[0] - 0.5).abs() < 1e-12, "{out:?}");
+        }
     }
 }

@@ -119,14 +119,22 @@ fn cut_at_cone_edges(source: &LightSource, path: [DVec3; 2], span: [f64; 2], cut
     }
 }
 
-/// Cut `span` at the tent shutter's kink, where a Gauss–Legendre rule would lose its order.
-fn cut_at_shutter_kink(shutter: &crate::scene::Shutter, span: [f64; 2], cuts: &mut Vec<f64>) {
-    if shutter.shape == ShutterShape::Tent {
-        let middle = shutter.middle();
-        if middle > span[0] && middle < span[1] {
-            cuts.push(middle);
-        }
-    }
+/// Cut `span` where the shutter's weight keeps three Gauss–Legendre points from integrating it:
+/// at the tent's kink, and at a Gaussian's middle and ±1.5σ. Three points weighted by a Gaussian
+/// over its whole width put 0.89 of the weight on the middle one (a face turning ±40° under a
+/// light in front came out 1.5·10⁻² too bright); over quarters of the exposure, 3·10⁻⁶.
+fn cut_for_shutter_weight(shutter: &crate::scene::Shutter, span: [f64; 2], cuts: &mut Vec<f64>) {
+    let quarter = |q: f64| shutter.open + q * shutter.duration();
+    let (times, count) = match shutter.shape {
+        ShutterShape::Box => ([0.0; 3], 0),
+        ShutterShape::Tent => ([shutter.middle(), 0.0, 0.0], 1),
+        ShutterShape::Gaussian => ([quarter(0.25), shutter.middle(), quarter(0.75)], 3),
+    };
+    cuts.extend(
+        times[..count]
+            .iter()
+            .filter(|&&t| t > span[0] && t < span[1]),
+    );
 }
 
 /// Each corner's straight path over the sub-segment [t0, t1], as its positions at the two ends
@@ -1129,7 +1137,7 @@ impl<'a> Prepared<'a> {
             }
         }
         let shutter = &self.scene.shutter;
-        cut_at_shutter_kink(shutter, span, cuts);
+        cut_for_shutter_weight(shutter, span, cuts);
         cuts.sort_unstable_by(f64::total_cmp);
         cuts.dedup();
         let mut sum = [0.0; 3];
@@ -1295,7 +1303,7 @@ impl<'a> Prepared<'a> {
             }
         }
         stats.point_sampled += usize::from(point_sampled);
-        cut_at_shutter_kink(&self.scene.shutter, span, cuts);
+        cut_for_shutter_weight(&self.scene.shutter, span, cuts);
         cuts.sort_unstable_by(f64::total_cmp);
         cuts.dedup();
         // The share of each shadow map's light reaching the receiver at t, in the order
