@@ -125,6 +125,7 @@ pub fn images_per_scene(options: &GalleryOptions) -> usize {
 /// Render the gallery into `options.out_dir` and write its page; `progress` advances once per
 /// image.
 pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<Vec<SceneShots>> {
+    crate::style::check_distinct_names(&options.styles)?;
     std::fs::create_dir_all(&options.out_dir).map_err(|e| Error::io(&options.out_dir, e))?;
     let mut rows = Vec::new();
     for path in &options.scenes {
@@ -237,6 +238,20 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
     Ok(rows)
 }
 
+/// A file name as a relative URL: every byte but unreserved ones percent-encoded, so that `#`,
+/// `?`, `%` or a space in a scene's name do not break the image's address.
+fn url_path(file: &str) -> String {
+    file.bytes()
+        .map(|b| {
+            if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
+                char::from(b).to_string()
+            } else {
+                format!("%{b:02X}")
+            }
+        })
+        .collect()
+}
+
 /// Text made safe for HTML.
 fn escape(text: &str) -> String {
     text.replace('&', "&amp;")
@@ -261,7 +276,7 @@ fn figure(shot: &Shot, static_seconds: f64, class: &str) -> String {
     format!(
         "<figure class=\"{class}\"><img src=\"{file}\" alt=\"{alt}\" loading=\"lazy\">\
          <figcaption><b>{title}</b><br>{seconds:.3} s · {ratio:.1}× static<br>{error}</figcaption></figure>\n",
-        file = escape(&shot.file),
+        file = url_path(&shot.file),
         alt = escape(&title),
         title = escape(&title),
         seconds = shot.seconds,
@@ -360,6 +375,62 @@ fn index_html(rows: &[SceneShots], styles: &[Arc<Style>], samples: usize) -> Str
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn styles_of_one_name_are_refused_before_their_images_overwrite_each_other() {
+        // `--styles styles mine`, where mine/comet.toml is the user's variant of the preset.
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let dir = std::env::temp_dir().join(format!("streak-gallery-names-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("mine")).unwrap();
+        let preset = std::fs::read_to_string(root.join("styles/comet.toml")).unwrap();
+        std::fs::write(
+            dir.join("mine/comet.toml"),
+            preset.replace("intensity = 1.2", "intensity = 0.3"),
+        )
+        .unwrap();
+        let styles: Vec<Arc<Style>> = [root.join("styles/comet.toml"), dir.join("mine/comet.toml")]
+            .iter()
+            .map(|p| Arc::new(Style::load(p).unwrap()))
+            .collect();
+        let options = GalleryOptions {
+            scenes: vec![root.join("tests/data/turning-square.toml")],
+            styles,
+            samples: 2,
+            out_dir: dir.join("out"),
+            size: None,
+            spatial_samples: None,
+            budget: Budget::default(),
+        };
+        let result = run(&options, None);
+        std::fs::remove_dir_all(&dir).unwrap();
+        match result {
+            Err(Error::Usage(message)) => assert!(message.contains("comet"), "{message}"),
+            other => panic!("two `comet` styles were not refused: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn file_names_are_usable_as_image_addresses() {
+        // A scene file `take #2.toml`: `#` starts a fragment in a URL, so the image is not found.
+        let row = SceneShots {
+            name: "take #2".into(),
+            description: String::new(),
+            surfels: 1,
+            size: (8, 8),
+            path_px: 1.0,
+            own_style: None,
+            shots: vec![Shot {
+                method: "static".into(),
+                knob: "t=mid".into(),
+                full_detail: false,
+                file: "take #2-static.png".into(),
+                seconds: 0.1,
+                error: None,
+            }],
+        };
+        let html = index_html(&[row], &[], 4);
+        assert!(html.contains("src=\"take%20%232-static.png\""), "{html}");
+    }
 
     #[test]
     fn the_page_shows_hint_and_blur_side_by_side_with_time_and_error() {

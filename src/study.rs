@@ -215,9 +215,15 @@ fn timed(scene: &Scene, setting: &Setting) -> Result<(Render, f64)> {
     Ok((out, start.elapsed().as_secs_f64()))
 }
 
+/// The median: the middle value, or the mean of the two middle values of an even count.
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    let middle = v.len() / 2;
+    if v.len().is_multiple_of(2) {
+        (v[middle - 1] + v[middle]) / 2.0
+    } else {
+        v[middle]
+    }
 }
 
 /// The converged reference, from the cache when the same scene, size and count were done before.
@@ -288,6 +294,7 @@ pub fn run(
             options.max_samples, options.reference_samples, options.repeats
         )));
     }
+    crate::style::check_distinct_names(&options.styles)?;
     std::fs::create_dir_all(&options.out_dir).map_err(|e| Error::io(&options.out_dir, e))?;
     let reference = converged_reference(
         scene,
@@ -566,6 +573,51 @@ mod tests {
                 ssim: 1.0,
                 flip: rmse,
             },
+        }
+    }
+
+    #[test]
+    fn median_of_an_even_count_is_the_mean_of_the_middle_two() {
+        // `--repeats 2`: the median of 1 s and 3 s is 2 s, not the slower run.
+        assert_eq!(median(vec![1.0, 3.0]), 2.0);
+        assert_eq!(median(vec![4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![5.0]), 5.0);
+    }
+
+    #[test]
+    fn styles_of_one_name_are_refused_before_their_hints_share_a_file_and_a_row() {
+        // `--style styles/comet.toml --style mine/comet.toml`: both hints would be written to
+        // hint-comet.png and tabled as the same knob.
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let dir = std::env::temp_dir().join(format!("streak-study-names-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("mine")).unwrap();
+        let preset = std::fs::read_to_string(root.join("styles/comet.toml")).unwrap();
+        std::fs::write(
+            dir.join("mine/comet.toml"),
+            preset.replace("intensity = 1.2", "intensity = 0.3"),
+        )
+        .unwrap();
+        let styles: Vec<Arc<Style>> = [root.join("styles/comet.toml"), dir.join("mine/comet.toml")]
+            .iter()
+            .map(|p| Arc::new(Style::load(p).unwrap()))
+            .collect();
+        let scene = Scene::load(&root.join("tests/data/turning-square.toml")).unwrap();
+        let options = StudyOptions {
+            reference_samples: 4,
+            max_samples: 1,
+            repeats: 1,
+            out_dir: dir.join("out"),
+            styles,
+        };
+        let result = run(&scene, &options, None);
+        std::fs::remove_dir_all(&dir).unwrap();
+        match result {
+            Err(Error::Usage(message)) => assert!(message.contains("comet"), "{message}"),
+            other => panic!(
+                "two `comet` styles were not refused: {:?}",
+                other.map(|_| ())
+            ),
         }
     }
 

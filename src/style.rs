@@ -295,6 +295,29 @@ impl Style {
     }
 }
 
+/// Refuses two styles of one [`Style::name`]: hint images and study rows are named after their
+/// style, so one would overwrite the other's image and share its row.
+pub fn check_distinct_names(styles: &[std::sync::Arc<Style>]) -> Result<()> {
+    let shown = |style: &Style| {
+        style.source.as_ref().map_or_else(
+            || "the built-in default".to_string(),
+            |p| p.display().to_string(),
+        )
+    };
+    for (i, style) in styles.iter().enumerate() {
+        if let Some(other) = styles[..i].iter().find(|s| s.name() == style.name()) {
+            return Err(Error::Usage(format!(
+                "two styles are named {}: {} and {}; a hint's image is named after its style, so \
+                 rename one",
+                style.name(),
+                shown(other),
+                shown(style)
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// A number in [lo, hi], or an error naming `field`.
 fn within(field: &str, v: f64, lo: f64, hi: f64) -> Result<f64> {
     if (lo..=hi).contains(&finite(field, v)?) {
