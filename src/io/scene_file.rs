@@ -20,7 +20,7 @@ use crate::scene::{
 use crate::simplify::speed::DetailRule;
 use crate::style::Style;
 use crate::surfels::cloud::{check_neighbours, DEFAULT_NEIGHBOURS};
-use crate::surfels::volume::{voxel_count, IsoSurface, Volume, MAX_VOXELS};
+use crate::surfels::volume::{checked_stride, voxel_count, IsoSurface, Volume, MAX_VOXELS};
 use crate::surfels::{
     from_mesh, from_point_cloud, from_volume, Budget, Colouring, Mesh, Primitive, Surfel,
 };
@@ -421,11 +421,12 @@ impl VolumeShape {
         voxel_count(dimensions).map_err(|e| e.in_file(file, field))?;
         let volume = Volume::read(&base.join(&self.path), dimensions, voxel)
             .map_err(|e| e.named_by(file, &format!("{field}.path")))?;
+        let stride = checked_stride(self.stride.unwrap_or(1), dimensions)
+            .map_err(|e| e.in_file(file, field))?;
         let surface = IsoSurface {
             iso: self.iso,
             spacing: DVec3::from_array(self.spacing.unwrap_or([1.0; 3])),
-            // A negative stride is as wrong as 0, which the check below reports.
-            stride: usize::try_from(self.stride.unwrap_or(1)).unwrap_or(0),
+            stride,
         };
         from_volume(&volume, &surface, budget).map_err(|e| e.in_file(file, field))
     }
@@ -1029,5 +1030,24 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(message.contains("object[0].shape.stride") && message.contains("larger stride"));
+    }
+
+    #[test]
+    fn a_negative_stride_is_named_by_its_value() {
+        let (mut shape, dir) = volume_shape();
+        shape.stride = Some(-3);
+        let message = shape
+            .surfels(
+                Path::new("scene.toml"),
+                &dir,
+                "object[0].shape",
+                Budget::new(1_000_000).unwrap(),
+            )
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.starts_with("scene.toml: object[0].shape.stride: -3: "),
+            "{message}"
+        );
     }
 }

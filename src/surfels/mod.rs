@@ -22,6 +22,11 @@ pub use volume::{from_volume, IsoSurface, Volume};
 use crate::error::{Error, Result};
 use glam::DVec3;
 
+/// Smallest and largest length accepted for a generated surface (a primitive's size and
+/// spacing, a volume's voxel spacing): wide enough for any unit, narrow enough that areas, cell
+/// counts and squared extents stay finite (4πr² overflows from r ≈ 10¹⁵⁴).
+pub const LENGTH_RANGE: (f64, f64) = (1e-9, 1e9);
+
 /// Standard deviation of a surfel's Gaussian as a fraction of its cell's side: the sum of
 /// Gaussians on a regular grid then ripples by ~0.2 % (docs/math.md, "Poisson summation and
 /// SIGMA_PER_SPACING").

@@ -4,8 +4,21 @@
 
 use glam::DVec3;
 
-use super::{Budget, Surfel, DEFAULT_GREY, SIGMA_PER_SPACING};
+use super::{Budget, Surfel, DEFAULT_GREY, LENGTH_RANGE, SIGMA_PER_SPACING};
 use crate::error::{Error, Result};
+
+/// Most turns a torus knot may make each way (p and q): the parameter lines are measured with a
+/// number of steps proportional to the turns.
+pub const MAX_KNOT_TURNS: u32 = 1000;
+
+/// The greatest common divisor of `a` and `b`.
+fn gcd(a: u32, b: u32) -> u32 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
 
 /// A procedural surface, centred at the origin.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,15 +68,16 @@ pub enum Primitive {
 
 impl Primitive {
     /// Sample the surface into light grey surfels about `spacing` apart, within `budget` (counted
-    /// on the sampling grid before anything is allocated). Errors name the field: `spacing` (not
-    /// finite and positive, or so small that the budget would be exceeded), a dimension
-    /// (`radius`, `size[1]`, …) that is not finite and positive, or the torus knot itself when p
-    /// or q is 0.
+    /// on the sampling grid before anything is allocated). Errors name the field: `spacing`
+    /// (outside [`LENGTH_RANGE`], or so small that the budget would be exceeded), a dimension
+    /// (`radius`, `size[1]`, …) outside [`LENGTH_RANGE`], or the torus knot itself when p or q is
+    /// 0 or more than [`MAX_KNOT_TURNS`], or when they have a common factor.
     pub fn surfels(&self, spacing: f64, budget: Budget) -> Result<Vec<Surfel>> {
-        if !(spacing.is_finite() && spacing > 0.0) {
+        let (lo, hi) = LENGTH_RANGE;
+        if !(spacing >= lo && spacing <= hi) {
             return Err(Error::invalid(
                 "spacing",
-                format!("{spacing}: must be a finite number greater than zero"),
+                format!("{spacing}: must be a finite number between {lo:e} and {hi:e}"),
             ));
         }
         let dimensions: Vec<(&str, f64)> = match *self {
@@ -79,16 +93,33 @@ impl Primitive {
             Primitive::TorusKnot { scale, tube, .. } => vec![("scale", scale), ("tube", tube)],
         };
         for (name, v) in dimensions {
-            if !(v.is_finite() && v > 0.0) {
+            if !(v >= lo && v <= hi) {
                 return Err(Error::invalid(
                     name,
-                    format!("{v}: must be a finite number greater than zero"),
+                    format!("{v}: must be a finite number between {lo:e} and {hi:e}"),
                 ));
             }
         }
         if let Primitive::TorusKnot { p, q, .. } = *self {
-            if p == 0 || q == 0 {
-                return Err(Error::invalid("", "a torus knot needs p ≥ 1 and q ≥ 1"));
+            if !(1..=MAX_KNOT_TURNS).contains(&p) || !(1..=MAX_KNOT_TURNS).contains(&q) {
+                return Err(Error::invalid(
+                    "",
+                    format!(
+                        "a torus knot needs p and q from 1 to {MAX_KNOT_TURNS}, not ({p}, {q})"
+                    ),
+                ));
+            }
+            let d = gcd(p, q);
+            if d > 1 {
+                return Err(Error::invalid(
+                    "",
+                    format!(
+                        "({p}, {q}) have the common factor {d}: that curve is the ({}, {}) knot \
+                         run {d} times over; give p and q without a common factor",
+                        p / d,
+                        q / d
+                    ),
+                ));
             }
         }
         sample(self, spacing, budget).ok_or_else(|| {
@@ -220,6 +251,7 @@ fn sample(primitive: &Primitive, spacing: f64, budget: Budget) -> Option<Vec<Sur
             sample_parametric(surface, spacing, outward, &mut out);
         }
         Primitive::TorusKnot { p, q, scale, tube } => {
+            let turns = p.max(q) as usize;
             let (p, q) = (f64::from(p), f64::from(q));
             let curve = move |u: f64| {
                 let phi = u * std::f64::consts::TAU;
@@ -227,7 +259,8 @@ fn sample(primitive: &Primitive, spacing: f64, budget: Budget) -> Option<Vec<Sur
                 scale * DVec3::new(r * (p * phi).cos(), -(q * phi).sin(), r * (p * phi).sin())
             };
             let frame = move |u: f64| {
-                let h = 1e-4;
+                // At most a thousandth of a turn, and 10⁻⁴ for a knot of ten turns or fewer.
+                let h = (1e-3 / turns as f64).min(1e-4);
                 let (a, c, b) = (curve(u - h), curve(u), curve(u + h));
                 let tangent = (b - a).normalize();
                 let bend = b - 2.0 * c + a;
@@ -244,7 +277,7 @@ fn sample(primitive: &Primitive, spacing: f64, budget: Budget) -> Option<Vec<Sur
             // Outward is away from the nearest point of the core curve; the tube is thin enough
             // that the curve point at the same parameter is that point.
             let outward_at = move |u: f64, v: f64| surface(u, v) - frame(u).0;
-            sample_parametric_with(surface, spacing, outward_at, &mut out);
+            sample_parametric_with(surface, spacing, outward_at, turns, &mut out);
         }
     }
     (!out.over_budget).then_some(out.surfels)
@@ -345,19 +378,22 @@ fn sample_parametric(
     outward: impl Fn(DVec3) -> DVec3,
     out: &mut Sampler,
 ) {
-    sample_parametric_with(&surface, spacing, |u, v| outward(surface(u, v)), out);
+    sample_parametric_with(&surface, spacing, |u, v| outward(surface(u, v)), 1, out);
 }
 
 /// Sample a surface f(u, v) over [0,1]² on a grid whose counts follow the mean lengths of the
-/// parameter lines; each cell's tangent steps come from central differences.
+/// parameter lines; each cell's tangent steps come from central differences. A u-line may wind
+/// `turns` times round; its length is measured with at least 32 steps per turn (256 steps
+/// measured a (255, 1) knot's so short that its cells came out 200 times too long).
 fn sample_parametric_with(
     surface: impl Fn(f64, f64) -> DVec3,
     spacing: f64,
     outward: impl Fn(f64, f64) -> DVec3,
+    turns: usize,
     out: &mut Sampler,
 ) {
     let mean_length = |along_u: bool| {
-        let (lines, steps) = (8, 256);
+        let (lines, steps) = (8, if along_u { (32 * turns).max(256) } else { 256 });
         let mut total = 0.0;
         for l in 0..lines {
             let fixed = (l as f64 + 0.5) / lines as f64;
@@ -592,5 +628,65 @@ mod tests {
             .unwrap()
             .len();
         assert!((fine as f64 / coarse as f64 - 4.0).abs() < 0.05);
+    }
+
+    #[test]
+    fn shapes_too_large_for_their_areas_are_refused() {
+        // 4πr² overflows to infinity: one surfel of infinite area came back.
+        let sphere = Primitive::Sphere { radius: 1e160 }.surfels(1.0, Budget::default());
+        assert!(
+            sphere.is_err(),
+            "{:?}",
+            sphere.map(|s| (s.len(), s[0].area))
+        );
+        // Each cell's area overflows: every surfel was dropped and the quad came back empty.
+        let quad = Primitive::Quad {
+            size: [1e300, 1e300],
+        }
+        .surfels(1e299, Budget::default());
+        assert!(quad.is_err(), "{:?}", quad.map(|s| s.len()));
+        // A subnormal spacing: 1/spacing is infinite, counted as one cell, past the budget.
+        let fine = Primitive::Quad { size: [1.0, 1.0] }.surfels(1e-310, Budget::default());
+        assert!(fine.is_err(), "{:?}", fine.map(|s| s.len()));
+    }
+
+    #[test]
+    fn torus_knots_with_many_turns_are_sampled_spacing_apart() {
+        for (p, q) in [(255, 1), (7, 200)] {
+            let surfels = Primitive::TorusKnot {
+                p,
+                q,
+                scale: 0.2,
+                tube: 0.05,
+            }
+            .surfels(0.02, Budget::default())
+            .unwrap();
+            // axis_u is SIGMA_PER_SPACING times the cell's step along the knot.
+            let mean = surfels.iter().map(|s| s.axis_u.length()).sum::<f64>()
+                / (SIGMA_PER_SPACING * surfels.len() as f64);
+            assert!(
+                mean < 0.025,
+                "({p}, {q}): cells {mean} long along the knot at spacing 0.02"
+            );
+        }
+    }
+
+    #[test]
+    fn a_torus_knot_is_not_traced_twice_when_p_and_q_share_a_factor() {
+        let knot = |p, q| {
+            Primitive::TorusKnot {
+                p,
+                q,
+                scale: 0.3,
+                tube: 0.05,
+            }
+            .surfels(0.01, Budget::default())
+        };
+        let once = total_area(&knot(1, 2).unwrap());
+        // (2, 4) runs the (1, 2) curve twice over: twice the surfels, twice the area.
+        match knot(2, 4) {
+            Ok(twice) => panic!("(2, 4): area {} vs {once} for (1, 2)", total_area(&twice)),
+            Err(e) => assert!(e.to_string().contains("common factor"), "{e}"),
+        }
     }
 }

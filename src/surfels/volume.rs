@@ -10,17 +10,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
-use super::{Budget, Surfel, DEFAULT_GREY, SIGMA_PER_SPACING};
+use super::{Budget, Surfel, DEFAULT_GREY, LENGTH_RANGE, SIGMA_PER_SPACING};
 use crate::error::{Error, Result};
 use crate::math::Sym2;
 
 /// Most voxels a volume may have, 2³¹ (e.g. 2048 × 1024 × 1024): a typo in the dimensions must
 /// not ask for more memory than a workstation has (this is 2 GiB of uint8, 8 GiB of float32).
 pub const MAX_VOXELS: u64 = 1 << 31;
-
-/// Smallest and largest voxel spacing accepted: wide enough for any unit, narrow enough that the
-/// squared extents of the largest volume stay far from overflow.
-pub const SPACING_RANGE: (f64, f64) = (1e-9, 1e9);
 
 /// Voxel values in their own type, so a uint8 volume takes one byte per voxel in memory; x
 /// fastest, then y, then z.
@@ -163,13 +159,35 @@ impl Volume {
     }
 }
 
+/// `stride` as a whole number of voxels from 1 to the smallest of `dimensions` less one, or an
+/// error naming `stride` and quoting the value given (a negative one too).
+pub fn checked_stride<T>(stride: T, dimensions: [usize; 3]) -> Result<usize>
+where
+    T: TryInto<usize> + std::fmt::Display + Copy,
+{
+    let widest = dimensions.iter().min().map_or(1, |&n| n.saturating_sub(1));
+    stride
+        .try_into()
+        .ok()
+        .filter(|s| (1..=widest).contains(s))
+        .ok_or_else(|| {
+            Error::invalid(
+                "stride",
+                format!(
+                    "{stride}: use a whole number from 1 (every voxel) to {widest} (the smallest \
+                     dimension less one)"
+                ),
+            )
+        })
+}
+
 /// The surfels of `volume`'s iso-surface (light grey; see [`Volume::iso_surfels`]), within
-/// `budget`. Errors name the field: `spacing[i]` (outside [`SPACING_RANGE`]), `iso` (not
+/// `budget`. Errors name the field: `spacing[i]` (outside [`LENGTH_RANGE`]), `iso` (not
 /// finite, or crossing no cell), `stride` (0, more than the smallest dimension less one, or so
 /// small that the surface has more surfels than the budget allows).
 pub fn from_volume(volume: &Volume, surface: &IsoSurface, budget: Budget) -> Result<Vec<Surfel>> {
     for (axis, s) in surface.spacing.to_array().into_iter().enumerate() {
-        let (lo, hi) = SPACING_RANGE;
+        let (lo, hi) = LENGTH_RANGE;
         if !(s >= lo && s <= hi) {
             return Err(Error::invalid(
                 format!("spacing[{axis}]"),
@@ -183,17 +201,14 @@ pub fn from_volume(volume: &Volume, surface: &IsoSurface, budget: Budget) -> Res
             format!("{} is not a finite number", surface.iso),
         ));
     }
-    let stride = surface.stride;
-    let widest = volume.dimensions.iter().min().map_or(1, |&n| n - 1);
-    if !(1..=widest).contains(&stride) {
+    if volume.dimensions.contains(&1) {
+        let [x, y, z] = volume.dimensions;
         return Err(Error::invalid(
-            "stride",
-            format!(
-                "{stride}: use a whole number from 1 (every voxel) to {widest} (the smallest \
-                 dimension less one)"
-            ),
+            "dimensions",
+            format!("{x} × {y} × {z}: an iso-surface needs at least 2 voxels along each axis"),
         ));
     }
+    let stride = checked_stride(surface.stride, volume.dimensions)?;
     let surfels = volume.iso_surfels(surface, budget.left).ok_or_else(|| {
         budget.exceeded(
             "stride",
@@ -206,12 +221,26 @@ pub fn from_volume(volume: &Volume, surface: &IsoSurface, budget: Budget) -> Res
     })?;
     if surfels.is_empty() {
         let (lo, hi) = volume.value_range();
+        let iso = surface.iso;
+        if lo <= iso && iso < hi {
+            let advice = if stride > 1 {
+                "use a smaller stride"
+            } else {
+                "every cell it crosses has a zero gradient"
+            };
+            return Err(Error::invalid(
+                "iso",
+                format!(
+                    "the surface at {iso} crosses no cell with a gradient at stride {stride}, \
+                     though the volume's values run from {lo} to {hi}: {advice}"
+                ),
+            ));
+        }
         return Err(Error::invalid(
             "iso",
             format!(
-                "the surface at {} crosses no cell: the volume's values run from {lo} to \
-                 {hi}, pick one in between",
-                surface.iso
+                "the surface at {iso} crosses no cell: the volume's values run from {lo} to \
+                 {hi}, pick one in between"
             ),
         ));
     }
@@ -730,5 +759,44 @@ pub(crate) mod tests {
         ] {
             assert!(extract(&volume, iso, spacing, stride).is_empty());
         }
+    }
+
+    #[test]
+    fn a_volume_one_voxel_thick_is_refused_by_its_dimensions() {
+        let volume = float_volume([1, 8, 8], DVec3::ONE, |p| 3.0 - p.length());
+        let surface = IsoSurface {
+            iso: 0.0,
+            spacing: DVec3::ONE,
+            stride: 1,
+        };
+        let message = from_volume(&volume, &surface, Budget::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.starts_with("dimensions: ") && message.contains("at least 2"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn an_iso_value_within_the_range_that_no_sampled_cell_crosses_blames_the_stride() {
+        // One bright voxel between the samples of stride 2: the iso-value lies within the
+        // values' range, but no sampled cell straddles it.
+        let volume = float_volume([5; 3], DVec3::ONE, |p| {
+            if p == DVec3::splat(-1.0) {
+                10.0
+            } else {
+                0.0
+            }
+        });
+        let surface = IsoSurface {
+            iso: 5.0,
+            spacing: DVec3::ONE,
+            stride: 2,
+        };
+        let message = from_volume(&volume, &surface, Budget::default())
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("smaller stride"), "{message}");
     }
 }
