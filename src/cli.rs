@@ -540,11 +540,24 @@ fn run_study(args: StudyArgs) -> Result<()> {
         scene.camera.height,
         scene.surfel_count()
     );
-    // A scene where nothing moves gives every method zero error: nothing to draw on log axes.
+    // A scene where nothing moves gives every method zero error: nothing to draw on log axes,
+    // and a plot left from an earlier study would stand beside a table it does not show.
+    let plot = args.output.join("study.svg");
     if points.iter().all(|p| p.error.rmse == 0.0) {
         eprintln!("every method matches the reference exactly (nothing moves): no plot written");
+        match std::fs::remove_file(&plot) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(Error::io(&plot, e)),
+            _ => {}
+        }
     } else {
-        write_error_vs_time_svg(&points, &title, &args.output.join("study.svg"))?;
+        let left_out = write_error_vs_time_svg(&points, &title, &plot)?;
+        if left_out > 0 {
+            eprintln!(
+                "{left_out} of {} points are not plotted: their RMSE or time is zero, which log \
+                 axes cannot show (they are in study.csv and study.md)",
+                points.len()
+            );
+        }
     }
     let mut report = study::table(&points);
     report

@@ -842,3 +842,31 @@ fn gallery_and_simplify_mistakes_are_explained() {
         .unwrap()
         .contains("\nf "));
 }
+
+/// A still scene: the references at every N match the converged one exactly, and zero error
+/// cannot go on log axes. The plot leaves those points out and the study says so.
+#[test]
+fn a_study_says_which_points_its_plot_leaves_out() {
+    let dir = workdir("still-study");
+    let still = SCENE.replace("translate = [0.5, 0, 0]", "translate = [0, 0, 0]");
+    std::fs::write(dir.join("scene.toml"), still).unwrap();
+    let out = streak(
+        &[
+            "study",
+            "scene.toml",
+            "-o",
+            "out",
+            "--reference-samples",
+            "4",
+            "--max-samples",
+            "2",
+            "--repeats",
+            "1",
+        ],
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("points are not plotted"), "{stderr}");
+    assert!(dir.join("out/study.svg").exists());
+}
