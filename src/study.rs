@@ -590,35 +590,22 @@ mod tests {
         // `--style styles/comet.toml --style mine/comet.toml`: both hints would be written to
         // hint-comet.png and tabled as the same knob.
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let dir = std::env::temp_dir().join(format!("streak-study-names-{}", std::process::id()));
-        std::fs::create_dir_all(dir.join("mine")).unwrap();
-        let preset = std::fs::read_to_string(root.join("styles/comet.toml")).unwrap();
-        std::fs::write(
-            dir.join("mine/comet.toml"),
-            preset.replace("intensity = 1.2", "intensity = 0.3"),
-        )
-        .unwrap();
-        let styles: Vec<Arc<Style>> = [root.join("styles/comet.toml"), dir.join("mine/comet.toml")]
-            .iter()
-            .map(|p| Arc::new(Style::load(p).unwrap()))
-            .collect();
         let scene = Scene::load(&root.join("tests/data/turning-square.toml")).unwrap();
         let options = StudyOptions {
             reference_samples: 4,
             max_samples: 1,
             repeats: 1,
-            out_dir: dir.join("out"),
-            styles,
+            out_dir: std::env::temp_dir().join("streak-study-never-written"),
+            styles: crate::style::two_comets(),
         };
-        let result = run(&scene, &options, None);
-        std::fs::remove_dir_all(&dir).unwrap();
-        match result {
-            Err(Error::Usage(message)) => assert!(message.contains("comet"), "{message}"),
+        match run(&scene, &options, None) {
+            Err(Error::Usage(message)) => assert!(message.contains("mine/comet.toml"), "{message}"),
             other => panic!(
                 "two `comet` styles were not refused: {:?}",
                 other.map(|_| ())
             ),
         }
+        assert!(!options.out_dir.exists());
     }
 
     #[test]

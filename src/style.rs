@@ -318,6 +318,19 @@ pub fn check_distinct_names(styles: &[std::sync::Arc<Style>]) -> Result<()> {
     Ok(())
 }
 
+/// Two styles named `comet`, from `styles/` and `mine/`: what [`check_distinct_names`] refuses.
+#[cfg(test)]
+pub(crate) fn two_comets() -> Vec<std::sync::Arc<Style>> {
+    ["styles", "mine"]
+        .map(|dir| {
+            std::sync::Arc::new(Style {
+                source: Some(std::path::Path::new(dir).join("comet.toml")),
+                ..Style::default()
+            })
+        })
+        .into()
+}
+
 /// A number in [lo, hi], or an error naming `field`.
 fn within(field: &str, v: f64, lo: f64, hi: f64) -> Result<f64> {
     if (lo..=hi).contains(&finite(field, v)?) {

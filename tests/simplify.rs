@@ -504,10 +504,9 @@ fn carried_colours_are_interpolated_within_their_range() {
     }
 }
 
-/// A scene looking at the icosphere from z = 6, the sphere moving `dx` along x over the shutter.
-fn moving_sphere(dx: f64) -> Scene {
-    let mesh = icosphere(4);
-    let camera = Camera::new(
+/// A 160 × 120 camera at z = 6 looking at the origin.
+fn camera_from_z6() -> Camera {
+    Camera::new(
         DVec3::new(0.0, 0.0, 6.0),
         DVec3::ZERO,
         DVec3::Y,
@@ -515,7 +514,13 @@ fn moving_sphere(dx: f64) -> Scene {
         160,
         120,
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// A scene looking at the icosphere from z = 6, the sphere moving `dx` along x over the shutter.
+fn moving_sphere(dx: f64) -> Scene {
+    let mesh = icosphere(4);
+    let camera = camera_from_z6();
     let triangles = TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Rgb([0.8, 0.6, 0.4])).unwrap();
     let mut surfels = from_mesh(&mesh, 4000, false).unwrap();
     Colouring::Rgb([0.8, 0.6, 0.4]).apply(&mut surfels);
@@ -729,15 +734,7 @@ fn a_slow_mesh_with_colour_seams_keeps_each_corner_colour() {
         TriangleMesh::from_parts(split.positions.clone(), split.triangles.clone(), colours)
             .unwrap();
     let surfels = from_mesh(&split, 600, false).unwrap();
-    let camera = Camera::new(
-        DVec3::new(0.0, 0.0, 6.0),
-        DVec3::ZERO,
-        DVec3::Y,
-        30.0,
-        160,
-        120,
-    )
-    .unwrap();
+    let camera = camera_from_z6();
     let at = |x: f64| Keyframe {
         t: (x + 0.005) / 0.01,
         pose: Pose {
