@@ -319,7 +319,7 @@ pub fn check_distinct_names(styles: &[std::sync::Arc<Style>]) -> Result<()> {
 }
 
 /// Two styles named `comet`, from `styles/` and `mine/`: what [`check_distinct_names`] refuses.
-#[cfg(test)]
+#[cfg(all(test, feature = "cli"))]
 pub(crate) fn two_comets() -> Vec<std::sync::Arc<Style>> {
     ["styles", "mine"]
         .map(|dir| {
