@@ -263,14 +263,12 @@ pub fn simplified(
     let mut hasher = hasher();
     mesh_key.hash(&mut hasher);
     hash_words(&mut hasher, limits.per_vertex.iter().map(|l| l.to_bits()));
-    // Only the direction's rough angle matters to the weights.
+    // The motions exactly, as the simplifier weighs them: rounded, a view would be handed the
+    // mesh of whichever nearby view was simplified first (a weight near a right angle moves by
+    // 6 % within one rounding step), and the image would depend on what the process drew before.
     hash_words(
         &mut hasher,
-        motion.iter().flat_map(|m| {
-            m.normalize_or_zero()
-                .to_array()
-                .map(|c| (c * 64.0).round() as i64 as u64)
-        }),
+        motion.iter().flat_map(|m| m.to_array().map(f64::to_bits)),
     );
     let key = hasher.finish();
     if let Some(shared) = CACHE.find(|&k| k == key) {
@@ -357,5 +355,72 @@ mod tests {
         for m in &changed {
             assert_ne!(content_key(m), key);
         }
+    }
+
+    /// A bumpy height field of `n` × `n` quads over the unit square.
+    fn bumps(n: u32) -> TriangleMesh {
+        let positions = (0..=n)
+            .flat_map(|j| {
+                (0..=n).map(move |i| {
+                    let (x, y) = (f64::from(i) / f64::from(n), f64::from(j) / f64::from(n));
+                    DVec3::new(
+                        x,
+                        y,
+                        0.05 * (7.0 * x).sin() * (5.0 * y).cos() + 0.02 * (13.0 * x * y).sin(),
+                    )
+                })
+            })
+            .collect();
+        let row = n + 1;
+        let triangles = (0..n)
+            .flat_map(|j| {
+                (0..n).flat_map(move |i| {
+                    let v = j * row + i;
+                    [[v, v + 1, v + row + 1], [v, v + row + 1, v + row]]
+                })
+            })
+            .collect();
+        let mesh = Mesh {
+            positions,
+            triangles,
+        };
+        TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Rgb([0.5; 3])).unwrap()
+    }
+
+    /// The cache hands out what `simplified` would make for these very motions: a view whose
+    /// motions round to the same directions as a view simplified before it (as nearby views'
+    /// do) must not get that other view's mesh.
+    #[test]
+    fn a_cached_simplification_is_the_one_its_own_motions_give() {
+        let mesh = bumps(24);
+        let key = content_key(&mesh);
+        let limits = Limits {
+            per_vertex: vec![0.25; mesh.positions.len()],
+        };
+        // Both round to (1, 0, 0) at 1/64 per component: along x, and half a degree off it.
+        let along = |y: f64| vec![DVec3::new(1.0, y, 0.0); mesh.positions.len()];
+        let (a, b) = (along(0.0077), along(0.0));
+        let b_alone = simplified(&mesh, key, limits.clone(), b.clone()).unwrap();
+        // Push it out of the cache.
+        let filler = bumps(2);
+        for k in 0..2 * CACHE_ENTRIES as u64 {
+            let n = filler.positions.len();
+            simplified(
+                &filler,
+                k,
+                Limits {
+                    per_vertex: vec![1.0; n],
+                },
+                vec![DVec3::X; n],
+            )
+            .unwrap();
+        }
+        let a_first = simplified(&mesh, key, limits.clone(), a).unwrap();
+        assert_ne!(
+            a_first.0.positions, b_alone.0.positions,
+            "the motions matter"
+        );
+        let b_after_a = simplified(&mesh, key, limits, b).unwrap();
+        assert_eq!(b_after_a.0.positions, b_alone.0.positions);
     }
 }
