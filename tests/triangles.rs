@@ -928,3 +928,62 @@ fn a_face_turning_under_a_gaussian_shutter_is_lit_for_the_weighted_mean() {
         );
     }
 }
+
+#[test]
+fn a_receiver_turning_to_face_the_light_takes_its_depth_bias_at_each_time() {
+    // A 2 × 2 square turning about y between θ = −25° and 60° under light from 60° (its normal
+    // from 85° off the light to facing it, or back), a small still square hovering 0.04 above
+    // the centre point, facing the light, in a 256² shadow map. The depth bias grows with the
+    // angle to the light (2(1 + tan α) texels), so the point is shadowed only while it nearly
+    // faces the light.
+    // One piece of the receiver turns ~14°: taking the bias of its start for all of it (as
+    // before) lit the centre 0.03 too long one way and too short the other. The reference
+    // places each of its instants with that instant's normal. A still square below, larger
+    // than the receiver, frames the shadow map alike at every instant and over the exposure, so
+    // the texels, and so the biases, are the same for both methods.
+    let phi = 60f64.to_radians();
+    let l = DVec3::new(phi.sin(), 0.0, phi.cos());
+    let turn = |degrees: f64| Pose {
+        rotation: DQuat::from_rotation_y(degrees.to_radians()),
+        ..Pose::IDENTITY
+    };
+    let c = l * 0.04;
+    let hovering = Pose {
+        rotation: DQuat::from_rotation_y(phi),
+        ..at(c.x, c.y, c.z)
+    };
+    for (from, to) in [(-25.0, 60.0), (60.0, -25.0)] {
+        let light = Light::new(l, 1.0).unwrap().with_shadows(true);
+        let lighting = Lighting::new(0.0, vec![light]).unwrap();
+        let s = scene(33, 1)
+            .with_lighting(lighting.with_shadow_map(256).unwrap())
+            .with_object(object(
+                "receiver",
+                &square(2.0),
+                [1.0; 3],
+                &[(0.0, turn(from)), (1.0, turn(to))],
+            ))
+            .with_object(object(
+                "hovering",
+                &square(0.02),
+                [0.0; 3],
+                &[(0.0, hovering)],
+            ))
+            .with_object(object(
+                "frame",
+                &square(2.2),
+                [1.0; 3],
+                &[(0.0, at(0.0, 0.0, -1.2))],
+            ));
+        let analytic = pixel(&render(&s, &Method::ANALYTIC).image, 16, 16)[0];
+        let reference = pixel(
+            &render(&s, &Method::Reference { samples: 1024 }).image,
+            16,
+            16,
+        )[0];
+        assert!(
+            (analytic - reference).abs() < 3e-3,
+            "{from}° to {to}°: analytic {analytic}, reference {reference}"
+        );
+    }
+}

@@ -1112,22 +1112,23 @@ impl<'a> Prepared<'a> {
                         .then_some(())
                 };
                 // One walk for the whole run settles most; the rest go piece by piece, each on
-                // its own path and time: between its ends, each placed once with its normal, or
-                // where it bends, along its stretch of the ray.
+                // its own path and time: between its ends, each placed with the least bias its
+                // normal takes within the piece, or where it bends, along its stretch of the ray.
                 let lit = || {
                     if lit_along(whole?, span).is_some() {
                         return Some(());
                     }
-                    let mut from = map.place(ends[0].point, ends[0].normal)?;
                     for (i, piece) in run.iter().enumerate() {
-                        let to = map.place(ends[i + 1].point, ends[i + 1].normal)?;
                         if piece.bends {
                             lit_along(ranges[i]?, piece.t)?;
                         } else {
+                            // Each end with the least bias the piece's turning normal takes.
+                            let normals = [ends[i].normal, ends[i + 1].normal];
+                            let from = map.place_turning(ends[i].point, normals)?;
+                            let to = map.place_turning(ends[i + 1].point, normals)?;
                             map.surely_lit_between(from, to, [time(i), time(i + 1)], own)
                                 .then_some(())?;
                         }
-                        from = to;
                     }
                     Some(())
                 };
@@ -1252,7 +1253,7 @@ impl<'a> Prepared<'a> {
         let mut point_sampled = false;
         let receiver = Receiver {
             path: [ends[0].1, ends[1].1],
-            normal: ends[0].0,
+            normals: [ends[0].0, ends[1].0],
             span,
             own,
         };

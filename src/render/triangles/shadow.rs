@@ -69,13 +69,25 @@ pub const MAX_SURELY_LIT_TEXELS: f64 = 1024.0;
 pub struct Receiver {
     /// Its world positions at the span's ends.
     pub path: [DVec3; 2],
-    /// Its unit surface normal.
-    pub normal: DVec3,
+    /// Its unit surface normals at the span's ends; between them the normal turns along the
+    /// shorter arc (their linear interpolation, made unit), and so does its depth bias.
+    pub normals: [DVec3; 2],
     /// The times it moves between.
     pub span: [f64; 2],
     /// What of its own does not shadow it: its triangle (object and triangle index), or its whole
     /// object where that cannot shadow itself (the triangle index then `u32::MAX`).
     pub own: (u32, u32),
+}
+
+impl Receiver {
+    /// Its unit normal at time `t` of its span: the ends' normals interpolated linearly and
+    /// made unit, as the receiver is shaded.
+    #[must_use]
+    pub fn normal_at(&self, t: f64) -> DVec3 {
+        let [t0, t1] = self.span;
+        let u = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        self.normals[0].lerp(self.normals[1], u).normalize_or_zero()
+    }
 }
 
 /// The camera of `source`'s shadow map: the spot's own view of its cone, or for a directional
@@ -485,18 +497,19 @@ impl ShadowMap {
     pub fn surely_lit(&self, receiver: &Receiver) -> bool {
         let Receiver {
             path: [p0, p1],
-            normal,
+            normals,
             span,
             own,
         } = *receiver;
-        // A still receiver's path is one point: placed once.
-        let Some(a) = self.place(p0, normal) else {
+        // A still receiver's path is one point: placed once. Each end is placed with the least
+        // bias its normal takes over the span, so that the limit is the deepest of any time's.
+        let Some(a) = self.place_turning(p0, normals) else {
             return false;
         };
         let Some(b) = (if p0 == p1 {
             Some(a)
         } else {
-            self.place(p1, normal)
+            self.place_turning(p1, normals)
         }) else {
             return false;
         };
@@ -510,6 +523,18 @@ impl ShadowMap {
     pub fn place(&self, p: DVec3, normal: DVec3) -> Option<(DVec2, f64)> {
         let (at, depth) = self.locate(p)?;
         Some((at, depth - self.bias(depth, self.bias_slope(p, normal))))
+    }
+
+    /// [`ShadowMap::place`] for a receiver point `p` whose unit normal turns from `normals[0]`
+    /// to `normals[1]` (along the shorter arc): with the least bias of any normal on the arc,
+    /// so that the depth limit is no nearer than any of theirs ([`ShadowMap::surely_lit`]).
+    #[must_use]
+    pub fn place_turning(&self, p: DVec3, normals: [DVec3; 2]) -> Option<(DVec2, f64)> {
+        let (at, depth) = self.locate(p)?;
+        Some((
+            at,
+            depth - self.bias(depth, self.least_bias_slope(p, normals)),
+        ))
     }
 
     /// [`ShadowMap::surely_lit`] for a receiver on triangle `own` moving over `span` between two
@@ -677,10 +702,34 @@ impl ShadowMap {
     fn bias_slope(&self, p: DVec3, normal: DVec3) -> f64 {
         let cos = normal
             .dot((self.occluders.camera.eye - p).normalize_or_zero())
-            .abs()
-            .max(1e-9);
+            .abs();
+        Self::slope_of_cos(cos)
+    }
+
+    /// [`ShadowMap::bias_slope`] of a receiver whose normal's |cos| to the light is `cos`.
+    fn slope_of_cos(cos: f64) -> f64 {
+        let cos = cos.max(1e-9);
         let slope = ((1.0 - cos * cos).max(0.0).sqrt() / cos).min(MAX_BIAS_SLOPE);
         BIAS_TEXELS * (1.0 + slope)
+    }
+
+    /// The least [`ShadowMap::bias_slope`] at `p` of the unit normals on the shorter arc from
+    /// `n0` to `n1`: the one nearest the light's direction (or its opposite), which is an end
+    /// or, where the direction's projection onto the arc's plane falls within the arc, that
+    /// projection.
+    fn least_bias_slope(&self, p: DVec3, [n0, n1]: [DVec3; 2]) -> f64 {
+        let e = (self.occluders.camera.eye - p).normalize_or_zero();
+        let mut cos = n0.dot(e).abs().max(n1.dot(e).abs());
+        let m = n0.cross(n1).normalize_or_zero();
+        if m != DVec3::ZERO {
+            let q = e - m * e.dot(m);
+            for q in [q, -q] {
+                if n0.cross(q).dot(m) >= 0.0 && q.cross(n1).dot(m) >= 0.0 {
+                    cos = cos.max(q.length());
+                }
+            }
+        }
+        Self::slope_of_cos(cos)
     }
 
     /// The four texels of a bilinear lookup at texel coordinates `at`, with their weights.
@@ -802,6 +851,7 @@ impl ShadowMap {
             if s1 > s0 {
                 let part = Receiver {
                     path: [point(s0), point(s1)],
+                    normals: [s0, s1].map(|t| receiver.normal_at(t)),
                     span: [s0, s1],
                     ..*receiver
                 };
@@ -821,7 +871,6 @@ impl ShadowMap {
     pub fn breakpoints(&self, receiver: &Receiver, out: &mut Vec<f64>) {
         let Receiver {
             path: [p0, p1],
-            normal,
             span: [t0, t1],
             ..
         } = *receiver;
@@ -835,9 +884,12 @@ impl ShadowMap {
         let (Some((_, d0)), Some((_, d1)), Some((middle, _))) = (start, end, middle) else {
             return;
         };
-        let slope = self.bias_slope(p0, normal);
+        // The bias at each time from the normal at that time, as a lookup then places the
+        // point ([`ShadowMap::visibility`]): a turning receiver's bias changes within the span.
         let limit = |t: f64| {
-            let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
+            let u = (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
+            let depth = d0 + (d1 - d0) * u;
+            let slope = self.bias_slope(p0.lerp(p1, u), receiver.normal_at(t));
             depth - self.bias(depth, slope)
         };
         // The footprint of the middle: a traced receiver's piece starts on a grid line.
@@ -903,9 +955,33 @@ impl ShadowMap {
         let mut open: Option<[f64; 2]> = None;
         for (o, [a0, a1]) in self.others_during(x, y, span, own) {
             // The part of [a0, a1] where the occluder is nearer than the limit.
-            let g0 = o.piece.depth_at(a0) - limit(a0);
-            let g1 = o.piece.depth_at(a1) - limit(a1);
-            let cross = || a0 + (a1 - a0) * g0 / (g0 - g1);
+            let g = |t: f64| o.piece.depth_at(t) - limit(t);
+            let (g0, g1) = (g(a0), g(a1));
+            // Where the gap changes sign: exact for a linear limit; one that bends (a turning
+            // receiver's bias) is followed by regula falsi (Illinois), a few steps at most.
+            let cross = || {
+                let ([mut lo, mut hi], [mut glo, mut ghi]) = ([a0, a1], [g0, g1]);
+                let mut t = lo + (hi - lo) * glo / (glo - ghi);
+                for _ in 0..32 {
+                    let gt = g(t);
+                    if gt == 0.0 || !(hi - lo > 1e-12 * (1.0 + a1.abs())) {
+                        break;
+                    }
+                    if (gt < 0.0) == (glo < 0.0) {
+                        (lo, glo) = (t, gt);
+                        ghi *= 0.5;
+                    } else {
+                        (hi, ghi) = (t, gt);
+                        glo *= 0.5;
+                    }
+                    let next = lo + (hi - lo) * glo / (glo - ghi);
+                    if next == t {
+                        break;
+                    }
+                    t = next;
+                }
+                t
+            };
             let part = match (g0 < 0.0, g1 < 0.0) {
                 (true, true) => Some([a0, a1]),
                 (true, false) => Some([a0, cross()]),
@@ -970,7 +1046,7 @@ mod tests {
     fn receiver(path: [DVec3; 2], span: [f64; 2], own: (u32, u32)) -> Receiver {
         Receiver {
             path,
-            normal: DVec3::Z,
+            normals: [DVec3::Z; 2],
             span,
             own,
         }
