@@ -538,7 +538,8 @@ impl ShadowMap {
     }
 
     /// [`ShadowMap::surely_lit`] for a receiver on triangle `own` moving over `span` between two
-    /// points placed by [`ShadowMap::place`]: its depth limit is the larger of theirs.
+    /// points placed by [`ShadowMap::place`] or [`ShadowMap::place_turning`]: its depth limit is
+    /// the larger of theirs.
     #[must_use]
     pub fn surely_lit_between(
         &self,
