@@ -248,6 +248,45 @@ pub fn keeps_sign(a: f64, b: f64, c: f64, [s0, s1]: [f64; 2]) -> bool {
     value(s0) * value(s1) > 0.0 && slope(s0) * slope(s1) > 0.0
 }
 
+/// Where `g` changes sign in [a, b], given `ga = g(a)` and `gb = g(b)` of opposite signs (or one
+/// zero): the secant's root, exact for a linear `g`, then refined by regula falsi (the Illinois
+/// variant, which halves the weight of an end kept twice) until the bracket or the step vanishes,
+/// a few steps for a `g` that bends gently.
+#[must_use]
+pub fn sign_change(g: impl Fn(f64) -> f64, [a, b]: [f64; 2], [ga, gb]: [f64; 2]) -> f64 {
+    let ([mut lo, mut hi], [mut glo, mut ghi]) = ([a, b], [ga, gb]);
+    let mut t = lo + (hi - lo) * glo / (glo - ghi);
+    for _ in 0..32 {
+        let gt = g(t);
+        if gt == 0.0 || !(hi - lo > 1e-12 * (1.0 + b.abs())) {
+            break;
+        }
+        if (gt < 0.0) == (glo < 0.0) {
+            (lo, glo) = (t, gt);
+            ghi *= 0.5;
+        } else {
+            (hi, ghi) = (t, gt);
+            glo *= 0.5;
+        }
+        let next = lo + (hi - lo) * glo / (glo - ghi);
+        if next == t {
+            break;
+        }
+        t = next;
+    }
+    t
+}
+
+/// The least and greatest coordinates of `points` on each axis (∞ and −∞ for none).
+#[must_use]
+pub fn bounds(points: impl IntoIterator<Item = DVec3>) -> (DVec3, DVec3) {
+    points
+        .into_iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        })
+}
+
 /// A Morton (Z-order) curve through a bounding cube, 21 bits per axis: points near each other
 /// in space mostly get keys near each other, so data sorted by key is read with fewer cache
 /// misses when a computation walks the surface.
@@ -263,9 +302,7 @@ const MORTON_CELLS: f64 = ((1u32 << 21) - 1) as f64;
 impl MortonCurve {
     /// The curve through the bounding cube of `points`.
     pub fn around(points: impl Iterator<Item = DVec3>) -> MortonCurve {
-        let (lo, hi) = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p), hi.max(p))
-        });
+        let (lo, hi) = bounds(points);
         let extent = (hi - lo).max_element();
         MortonCurve {
             lo: if lo.is_finite() { lo } else { DVec3::ZERO },

@@ -127,7 +127,7 @@ pub enum MeshLod {
     /// Not a triangle mesh.
     NoMesh,
     /// Drawn at full detail, for the reason given.
-    Full(&'static str),
+    Full(String),
     /// Simplified as far as its screen speed allows (Zhang et al. 2014, eq. 8).
     Simplified {
         /// The simplified triangles and how they were made.
@@ -995,14 +995,14 @@ fn mesh_lod(
         _ => None,
     };
     if let Some(why) = why {
-        return Ok((MeshLod::Full(why), None));
+        return Ok((MeshLod::Full(why.into()), None));
     }
     // Drawn as surfels, a simplified mesh is resampled in one colour: a mesh of several keeps
     // its own surfels, so it is not simplified at all.
     let as_triangles = draws_triangles(method, object);
     if !as_triangles && !mesh.colours.windows(2).all(|w| w[0] == w[1]) {
         return Ok((
-            MeshLod::Full("several colours, drawn as its own surfels"),
+            MeshLod::Full("several colours, drawn as its own surfels".into()),
             None,
         ));
     }
@@ -1018,23 +1018,20 @@ fn mesh_lod(
     let (shared, speed_px) = match SIMPLIFIED_IN_VIEW.find(|v| *v == view) {
         Some(found) => found,
         None => {
-            // Welding would blend the colours either side of a seam.
-            if speed::has_colour_seams(mesh) {
-                return Ok((
-                    MeshLod::Full("colour seams (vertices at one place with different colours)"),
-                    None,
-                ));
-            }
             let motion = ScreenMotion::of(&scene.camera, object, &mesh.positions, shutter);
             let limits = motion.limits(&scene.mesh_detail);
             let speed_px = motion
                 .speed_px
                 .iter()
                 .fold([f64::INFINITY, 0.0], |[lo, hi], &v| [lo.min(v), hi.max(v)]);
-            // A mesh the simplifier cannot take (no face with an area left, say) is drawn as it
-            // is.
-            let Ok(shared) = speed::simplified(mesh, mesh_key, limits, motion.motion) else {
-                return Ok((MeshLod::Full("the simplifier could not take it"), None));
+            // A mesh the simplifier cannot take (split at colour seams, or no face with an area
+            // left) is drawn as it is, and `--explain` says why.
+            let shared = match speed::simplified(mesh, mesh_key, limits, motion.motion) {
+                Ok(shared) => shared,
+                Err(e) => {
+                    let why = format!("the simplifier could not take it ({e})");
+                    return Ok((MeshLod::Full(why), None));
+                }
             };
             SIMPLIFIED_IN_VIEW.keep(view, (Arc::clone(&shared), speed_px));
             (shared, speed_px)

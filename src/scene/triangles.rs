@@ -158,11 +158,7 @@ fn shadows_itself(
     used.sort_unstable();
     used.dedup();
     let corners: Vec<DVec3> = used.iter().map(|&v| positions[v as usize]).collect();
-    let (lo, hi) = corners
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
-            (lo.min(p), hi.max(p))
-        });
+    let (lo, hi) = crate::math::bounds(corners.iter().copied());
     let tolerance = PLANAR_TOLERANCE * (hi - lo).length();
     // How far each corner lies in front of the plane of triangle t.
     let heights = |t: &[u32; 3], n: &DVec3| {

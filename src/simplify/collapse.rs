@@ -819,7 +819,7 @@ fn folds(old: [DVec3; 3], new: [DVec3; 3], first: Vec3) -> bool {
 /// (below 10⁻³⁸ costs all fell in one bin, above 10³⁸ in another). Being a power of two, it
 /// changes no collapse of a mesh whose costs were in range.
 fn cost_scale(positions: &[DVec3]) -> f64 {
-    let (lo, hi) = super::bounds(positions);
+    let (lo, hi) = crate::math::bounds(positions.iter().copied());
     let diagonal2 = (hi - lo).length_squared();
     let scale = (-(2.0 * diagonal2.log2()).round().clamp(-1000.0, 1000.0)).exp2();
     if scale.is_finite() && scale > 0.0 {

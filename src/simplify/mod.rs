@@ -111,8 +111,9 @@ pub struct Simplified {
 /// hears the face count now and then.
 ///
 /// Errors: a position that is not finite, or a face corner past the vertices, named by index;
-/// `carried` of the wrong length; limits not one per vertex, or not positive; a motion direction
-/// that is not finite or is zero, or motions not one finite one per vertex.
+/// `carried` of the wrong length, or differing between vertices at one position (welded, one
+/// would take the other's); limits not one per vertex, or not positive; a motion direction that
+/// is not finite or is zero, or motions not one finite one per vertex.
 pub fn simplify(
     mesh: &Mesh,
     options: &Options,
@@ -175,6 +176,15 @@ pub fn simplify(
     }
     let mut repairs = Repairs::default();
     let order = VertexOrder::new(mesh);
+    if let Some((v, first)) = order.first_seam(values, channels) {
+        return Err(Error::invalid(
+            "carried",
+            format!(
+                "vertex {v} lies where vertex {first} does with other values (a seam, as where \
+                 colours change): welding them would give it vertex {first}'s"
+            ),
+        ));
+    }
     repairs.welded = n - order.original.len();
     let (faces, around) = repaired_faces(mesh, &order, &mut repairs);
 
@@ -286,7 +296,7 @@ pub fn simplify(
 /// bit for bit, for a mesh whose centre lies within s of the origin on every axis, as a centred
 /// mesh's does.
 fn origin(positions: &[DVec3]) -> DVec3 {
-    let (lo, hi) = bounds(positions);
+    let (lo, hi) = crate::math::bounds(positions.iter().copied());
     let side = (hi - lo).max_element();
     if !(side.is_finite() && side > 0.0) {
         return DVec3::ZERO;
@@ -302,15 +312,6 @@ fn origin(positions: &[DVec3]) -> DVec3 {
     } else {
         DVec3::ZERO
     }
-}
-
-/// The least and greatest coordinates of `positions` on each axis (∞ and −∞ for none).
-pub(super) fn bounds(positions: &[DVec3]) -> (DVec3, DVec3) {
-    positions
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
-            (lo.min(p), hi.max(p))
-        })
 }
 
 /// The input's distinct positions laid out along a Morton curve, so that a run of consecutive
@@ -346,6 +347,20 @@ impl VertexOrder {
             place[v as usize] = original.len() as u32 - 1;
         }
         VertexOrder { original, place }
+    }
+
+    /// The first input vertex whose `per` values differ from those of the first vertex at its
+    /// position, and that vertex: welded, it would take them.
+    fn first_seam(&self, values: &[f32], per: usize) -> Option<(usize, usize)> {
+        if per == 0 {
+            return None;
+        }
+        (0..self.place.len()).find_map(|v| {
+            let first = self.original[self.place[v] as usize] as usize;
+            let own = &values[v * per..(v + 1) * per];
+            let welded = &values[first * per..(first + 1) * per];
+            (own != welded).then_some((v, first))
+        })
     }
 
     /// Per-vertex values given in input order (`per` of them per vertex), in curve order: each

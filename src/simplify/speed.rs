@@ -181,25 +181,6 @@ impl ScreenMotion {
     }
 }
 
-/// Whether `mesh` has colour seams: vertices at exactly one position with different colours (a
-/// mesh split where its colours change, as exporters write per-face colours). [`simplified`]
-/// welds them (`super::Repairs::welded`) and keeps the first one's colour, which would repaint
-/// the faces on the other side of the seam, collapsed or not.
-#[must_use]
-pub fn has_colour_seams(mesh: &TriangleMesh) -> bool {
-    let key = |p: DVec3| (p + DVec3::ZERO).to_array().map(f64::to_bits);
-    let mut placed: Vec<([u64; 3], [u32; 3])> = mesh
-        .positions
-        .iter()
-        .zip(&mesh.colours)
-        .map(|(&p, c)| (key(p), c.map(f32::to_bits)))
-        .collect();
-    placed.par_sort_unstable();
-    placed
-        .windows(2)
-        .any(|w| w[0].0 == w[1].0 && w[0].1 != w[1].1)
-}
-
 /// A simplified mesh and what its collapse loop did, shared by the cache.
 pub type Shared = Arc<(TriangleMesh, Stats)>;
 
@@ -323,11 +304,7 @@ mod tests {
                 ]
             })
             .collect();
-        let mesh = Mesh {
-            positions,
-            triangles,
-        };
-        TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Rgb([0.5; 3])).unwrap()
+        grey(positions, triangles)
     }
 
     /// The key is the same for the same content and changes with any one bit of a position, an
@@ -357,6 +334,15 @@ mod tests {
         }
     }
 
+    /// A mid-grey triangle mesh.
+    fn grey(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> TriangleMesh {
+        let mesh = Mesh {
+            positions,
+            triangles,
+        };
+        TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Rgb([0.5; 3])).unwrap()
+    }
+
     /// A bumpy height field of `n` × `n` quads over the unit square.
     fn bumps(n: u32) -> TriangleMesh {
         let positions = (0..=n)
@@ -380,11 +366,7 @@ mod tests {
                 })
             })
             .collect();
-        let mesh = Mesh {
-            positions,
-            triangles,
-        };
-        TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Rgb([0.5; 3])).unwrap()
+        grey(positions, triangles)
     }
 
     /// The cache hands out what `simplified` would make for these very motions: a view whose

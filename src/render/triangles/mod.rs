@@ -1234,16 +1234,15 @@ impl<'a> Prepared<'a> {
         // already turns linearly; the point departs from its chord by the perspective of a plane
         // moving in depth, far below a pixel over one piece.
         let ends = span.map(|t| self.surface(item, &triangle, d, fraction(t)));
+        let receiver = Receiver {
+            path: [ends[0].1, ends[1].1],
+            normals: [ends[0].0, ends[1].0],
+            span,
+            own,
+        };
         // The normal and point between the ends, the normal not made unit: N·L then has the
         // unit normal's sign and is exactly quadratic in time (`cut_where_turning`).
-        let between = |t: f64| {
-            let u = if span[1] > span[0] {
-                (t - span[0]) / (span[1] - span[0])
-            } else {
-                0.0
-            };
-            (ends[0].0.lerp(ends[1].0, u), ends[0].1.lerp(ends[1].1, u))
-        };
+        let between = |t: f64| receiver.between(t);
         let surface_at = |t: f64| {
             let (normal, p) = between(t);
             (normal.normalize_or_zero(), p)
@@ -1251,12 +1250,6 @@ impl<'a> Prepared<'a> {
         cuts.clear();
         cuts.extend(span);
         let mut point_sampled = false;
-        let receiver = Receiver {
-            path: [ends[0].1, ends[1].1],
-            normals: [ends[0].0, ends[1].0],
-            span,
-            own,
-        };
         // Per shadow map, whether its shadows cannot change anything here: the piece faces away
         // from its light all along, or is lit all along.
         let mut surely_lit = [true; MAX_SHADOWED_LIGHTS];

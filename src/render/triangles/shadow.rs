@@ -80,13 +80,22 @@ pub struct Receiver {
 }
 
 impl Receiver {
-    /// Its unit normal at time `t` of its span: the ends' normals interpolated linearly and
-    /// made unit, as the receiver is shaded.
+    /// Its normal, not made unit, and its point at time `t` of its span: the ends' interpolated
+    /// linearly (Palmér's sample interval), as the receiver is shaded.
     #[must_use]
-    pub fn normal_at(&self, t: f64) -> DVec3 {
+    pub fn between(&self, t: f64) -> (DVec3, DVec3) {
         let [t0, t1] = self.span;
         let u = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-        self.normals[0].lerp(self.normals[1], u).normalize_or_zero()
+        (
+            self.normals[0].lerp(self.normals[1], u),
+            self.path[0].lerp(self.path[1], u),
+        )
+    }
+
+    /// Its unit normal at time `t` ([`Receiver::between`], made unit).
+    #[must_use]
+    pub fn normal_at(&self, t: f64) -> DVec3 {
+        self.between(t).0.normalize_or_zero()
     }
 }
 
@@ -888,9 +897,9 @@ impl ShadowMap {
         // The bias at each time from the normal at that time, as a lookup then places the
         // point ([`ShadowMap::visibility`]): a turning receiver's bias changes within the span.
         let limit = |t: f64| {
-            let u = (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
-            let depth = d0 + (d1 - d0) * u;
-            let slope = self.bias_slope(p0.lerp(p1, u), receiver.normal_at(t));
+            let depth = d0 + (d1 - d0) * (t - t0) / (t1 - t0).max(f64::MIN_POSITIVE);
+            let (normal, p) = receiver.between(t);
+            let slope = self.bias_slope(p, normal.normalize_or_zero());
             depth - self.bias(depth, slope)
         };
         // The footprint of the middle: a traced receiver's piece starts on a grid line.
@@ -958,31 +967,9 @@ impl ShadowMap {
             // The part of [a0, a1] where the occluder is nearer than the limit.
             let g = |t: f64| o.piece.depth_at(t) - limit(t);
             let (g0, g1) = (g(a0), g(a1));
-            // Where the gap changes sign: exact for a linear limit; one that bends (a turning
-            // receiver's bias) is followed by regula falsi (Illinois), a few steps at most.
-            let cross = || {
-                let ([mut lo, mut hi], [mut glo, mut ghi]) = ([a0, a1], [g0, g1]);
-                let mut t = lo + (hi - lo) * glo / (glo - ghi);
-                for _ in 0..32 {
-                    let gt = g(t);
-                    if gt == 0.0 || !(hi - lo > 1e-12 * (1.0 + a1.abs())) {
-                        break;
-                    }
-                    if (gt < 0.0) == (glo < 0.0) {
-                        (lo, glo) = (t, gt);
-                        ghi *= 0.5;
-                    } else {
-                        (hi, ghi) = (t, gt);
-                        glo *= 0.5;
-                    }
-                    let next = lo + (hi - lo) * glo / (glo - ghi);
-                    if next == t {
-                        break;
-                    }
-                    t = next;
-                }
-                t
-            };
+            // Where the gap changes sign: exact for a linear limit, refined where a turning
+            // receiver's bias bends it.
+            let cross = || crate::math::sign_change(g, [a0, a1], [g0, g1]);
             let part = match (g0 < 0.0, g1 < 0.0) {
                 (true, true) => Some([a0, a1]),
                 (true, false) => Some([a0, cross()]),
