@@ -20,7 +20,7 @@ use crate::render::{
     Method, Receivers, Render, Subframes, Visibility, ANALYTIC_TOLERANCE_PX, DEFAULT_TOLERANCE_PX,
     MAX_SAMPLES,
 };
-use crate::scene::Scene;
+use crate::scene::{Geometry, Scene};
 use crate::style::Style;
 use indicatif::ProgressBar;
 use std::borrow::Cow;
@@ -234,27 +234,14 @@ pub fn converged_reference(
     cache_dir: &Path,
     progress: Option<&ProgressBar>,
 ) -> Result<Framebuffer> {
-    // The cache is keyed by the scene file's text; a scene built in code is not cached.
+    // A scene built in code is not cached.
     let cached = match &scene.source {
-        Some(source) => {
-            let text = std::fs::read_to_string(source).map_err(|e| Error::io(source, e))?;
-            let mut hasher = std::collections::hash_map::DefaultHasher::new();
-            (
-                text,
-                scene.camera.width,
-                scene.camera.height,
-                scene.camera.spatial_samples,
-                samples,
-                "full detail",
-                env!("CARGO_PKG_VERSION"),
-            )
-                .hash(&mut hasher);
-            Some(cache_dir.join(format!(
-                "reference-{samples}-{}spp-{:016x}.exr",
-                scene.camera.spatial_samples,
-                hasher.finish()
-            )))
-        }
+        Some(source) => reference_key(scene, source, samples)?.map(|key| {
+            cache_dir.join(format!(
+                "reference-{samples}-{}spp-{key:016x}.exr",
+                scene.camera.spatial_samples
+            ))
+        }),
         None => None,
     };
     if let Some(image) = cached.as_deref().and_then(|path| read_exr(path).ok()) {
@@ -274,6 +261,50 @@ pub fn converged_reference(
         write_exr(&image, path)?;
     }
     Ok(image)
+}
+
+/// The key of `scene`'s converged reference of `samples` frames in the cache: the scene file's
+/// text, the image size, the samples per pixel and the frames; the geometry as loaded, so that a
+/// changed mesh or point cloud beside the scene file is not answered with its old image; and the
+/// running program's own bytes, so that a rebuilt renderer draws its reference anew (its version
+/// number stays the same across changes). `None` when the program cannot read itself: nothing is
+/// cached then.
+fn reference_key(scene: &Scene, source: &Path, samples: usize) -> Result<Option<u64>> {
+    let text = std::fs::read_to_string(source).map_err(|e| Error::io(source, e))?;
+    let Some(program) = std::env::current_exe().and_then(std::fs::read).ok() else {
+        return Ok(None);
+    };
+    let mut hasher = crate::cache::hasher();
+    (
+        text,
+        scene.camera.width,
+        scene.camera.height,
+        scene.camera.spatial_samples,
+        samples,
+        "full detail",
+    )
+        .hash(&mut hasher);
+    for object in &scene.objects {
+        let surfels = match &object.geometry {
+            Geometry::Surfels(surfels) => surfels,
+            Geometry::Triangles { mesh, surfels } => {
+                hasher.write_u64(crate::simplify::speed::content_key(mesh));
+                surfels
+            }
+        };
+        crate::cache::hash_words(
+            &mut hasher,
+            surfels.iter().flat_map(|s| {
+                let vectors = [s.position, s.normal, s.axis_u, s.axis_v];
+                (vectors.into_iter().flat_map(|v| v.to_array()))
+                    .chain([s.area])
+                    .chain(s.colour.map(f64::from))
+                    .map(f64::to_bits)
+            }),
+        );
+    }
+    program.hash(&mut hasher);
+    Ok(Some(hasher.finish()))
 }
 
 /// Run the study: render every method across its knob, time it, measure it against the converged
@@ -574,6 +605,32 @@ mod tests {
                 flip: rmse,
             },
         }
+    }
+
+    #[test]
+    fn a_cached_reference_is_not_handed_out_for_changed_geometry_beside_the_scene_file() {
+        // The scene file's text stays the same while the mesh it names changes: the cached
+        // reference was drawn from the old mesh and must not be found.
+        let dir = std::env::temp_dir().join(format!("streak-study-key-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene_path = dir.join("scene.toml");
+        std::fs::write(
+            &scene_path,
+            "[camera]\neye = [0, 0, 4]\ntarget = [0, 0, 0]\nfov_y = 30\nwidth = 16\nheight = 16\n\n\
+             [[object]]\nname = \"card\"\n\
+             shape = { type = \"mesh\", path = \"card.obj\", samples = 8 }\n",
+        )
+        .unwrap();
+        let key_with = |corner: &str| {
+            let obj = format!("v 0 0 0\nv 1 0 0\nv {corner} 0\nf 1 2 3\n");
+            std::fs::write(dir.join("card.obj"), obj).unwrap();
+            let scene = Scene::load(&scene_path).unwrap();
+            reference_key(&scene, &scene_path, 16).unwrap().unwrap()
+        };
+        let key = key_with("0 1");
+        assert_eq!(key, key_with("0 1"), "the same files give the same key");
+        assert_ne!(key, key_with("0 2"), "a changed mesh gives another key");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

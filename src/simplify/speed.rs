@@ -12,14 +12,14 @@
 //! (quantized to quarter octaves, downwards), so a study's repeats and a gallery's methods
 //! simplify once.
 
-use std::hash::{BuildHasher, Hash, Hasher};
+use std::hash::{Hash, Hasher};
 use std::sync::Arc;
 
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::{simplify, Limits, Options, Simplified, Stats, Weighting};
-use crate::cache::Recent;
+use crate::cache::{hash_words, hasher, Recent};
 use crate::error::Result;
 use crate::scene::camera::Camera;
 use crate::scene::{Object, TriangleMesh};
@@ -186,10 +186,9 @@ pub type Shared = Arc<(TriangleMesh, Stats)>;
 
 static CACHE: Recent<u64, Shared> = Recent::new(CACHE_ENTRIES);
 
-/// A hash of everything in `mesh`, to tell meshes apart in caches. Fed in long runs of words,
-/// which foldhash takes many bytes at a time: element by element (SipHash, std's default) it took
-/// 5 ms per plan over the armadillo's 100 k faces, a tenth of a simplified render, and foldhash
-/// a third of that.
+/// A hash of everything in `mesh`, to tell meshes apart in caches (fed as
+/// [`crate::cache::hash_words`] explains: 5 ms per plan over the armadillo's 100 k faces element by
+/// element with SipHash, a tenth of a simplified render, and a third of that so).
 #[must_use]
 pub fn content_key(mesh: &TriangleMesh) -> u64 {
     let mut hasher = hasher();
@@ -207,29 +206,6 @@ pub fn content_key(mesh: &TriangleMesh) -> u64 {
             .flat_map(|c| c.map(|v| u64::from(v.to_bits()))),
     );
     hasher.finish()
-}
-
-/// Hash `words` a run of [`HASH_RUN`] at a time, and their count.
-fn hash_words(hasher: &mut impl Hasher, words: impl Iterator<Item = u64>) {
-    let mut run = [0u64; HASH_RUN];
-    let (mut filled, mut count) = (0, 0usize);
-    for word in words {
-        run[filled] = word;
-        filled += 1;
-        if filled == HASH_RUN {
-            run.hash(hasher);
-            (filled, count) = (0, count + HASH_RUN);
-        }
-    }
-    run[..filled].hash(hasher);
-    hasher.write_usize(count + filled);
-}
-
-/// Words hashed at a time by [`hash_words`].
-const HASH_RUN: usize = 1024;
-
-fn hasher() -> impl Hasher {
-    foldhash::quality::FixedState::default().build_hasher()
 }
 
 /// `mesh` (whose [`content_key`] is `mesh_key`) simplified as far as `limits` allow with edges
