@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::read::{is_gzipped, read_bounded, Bounded};
+use super::read::{is_gzipped, read_bounded, Bounded, Size};
 use crate::error::{Error, Result};
 use crate::surfels::volume::{voxel_count, Samples, Volume};
 
@@ -57,6 +57,12 @@ impl VoxelType {
     }
 }
 
+/// How far past the expected size a gzipped volume's bytes are counted for the message that it
+/// does not match (64 MiB, a fraction of a second to decompress): enough to tell a volume of
+/// other dimensions by its size, while a small file that inflates a thousandfold is not
+/// decompressed to its end.
+const COUNTED_PAST_EXPECTED: u64 = 1 << 26;
+
 /// Checks `dimensions` and returns the byte count a file of `voxel`s must have.
 fn expected_bytes(path: &Path, dimensions: [usize; 3], voxel: VoxelType) -> Result<u64> {
     Ok(voxel_count(dimensions).map_err(|e| e.in_file(path, ""))? * voxel.size() as u64)
@@ -69,7 +75,7 @@ fn wrong_size(
     dimensions: [usize; 3],
     voxel: VoxelType,
     expected: u64,
-    found: u64,
+    found: Size,
 ) -> Error {
     let [x, y, z] = dimensions;
     let after = if is_gzipped(path) {
@@ -99,8 +105,8 @@ impl Volume {
     pub fn read(path: &Path, dimensions: [usize; 3], voxel: VoxelType) -> Result<Volume> {
         let expected = expected_bytes(path, dimensions, voxel)?;
         // Read no more than one byte past the expected size: a hostile file cannot fill memory,
-        // and the rest is only counted for the message.
-        let bytes = match read_bounded(path, expected, true)? {
+        // and the rest is only counted for the message, up to [`COUNTED_PAST_EXPECTED`].
+        let bytes = match read_bounded(path, expected, expected + COUNTED_PAST_EXPECTED)? {
             Bounded::Within(bytes) => bytes,
             Bounded::Over(size) => return Err(wrong_size(path, dimensions, voxel, expected, size)),
         };
@@ -131,7 +137,7 @@ impl Volume {
                 dimensions,
                 voxel,
                 expected,
-                bytes.len() as u64,
+                Size::Exact(bytes.len() as u64),
             ));
         }
         let samples = match voxel {

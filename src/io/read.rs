@@ -10,9 +10,27 @@ use crate::error::{Error, Result};
 pub(crate) enum Bounded {
     /// The whole file (gunzipped), no more than the bound.
     Within(Vec<u8>),
-    /// More than the bound: the file's size, gunzipped, when asked to count it (else the bound
-    /// plus one).
-    Over(u64),
+    /// More than the bound: the file's size (gunzipped), counted no further than the caller
+    /// asked.
+    Over(Size),
+}
+
+/// The size of a file read past its bound.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Size {
+    /// Exactly this many bytes.
+    Exact(u64),
+    /// More than this many: counting stopped there.
+    MoreThan(u64),
+}
+
+impl std::fmt::Display for Size {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Size::Exact(n) => write!(f, "{n}"),
+            Size::MoreThan(n) => write!(f, "more than {n}"),
+        }
+    }
 }
 
 /// Whether `path` names a gzipped file (`.gz`, in any case, as the formats' names are read).
@@ -24,7 +42,7 @@ pub(crate) fn is_gzipped(path: &Path) -> bool {
 /// The bytes of the file at `path`, gunzipped on the fly when its name ends in `.gz`, or an
 /// error when there are more than `max_bytes` of them (after decompression).
 pub fn read_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
-    match read_bounded(path, max_bytes, false)? {
+    match read_bounded(path, max_bytes, 0)? {
         Bounded::Within(bytes) => Ok(bytes),
         Bounded::Over(_) => Err(Error::input(
             path,
@@ -35,16 +53,17 @@ pub fn read_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
 }
 
 /// The file at `path`, gunzipped on the fly when its name ends in `.gz`, holding no more than
-/// `max_bytes + 1` bytes in memory; with `count_excess`, a larger file is read to its end to tell
-/// its size.
-pub(crate) fn read_bounded(path: &Path, max_bytes: u64, count_excess: bool) -> Result<Bounded> {
+/// `max_bytes + 1` bytes in memory. A larger gzipped file is decompressed on to count its size
+/// for the message, but no further than `count_to` bytes: a small `.gz` can hold a thousand
+/// times its size, and counting all of it would take time without bound.
+pub(crate) fn read_bounded(path: &Path, max_bytes: u64, count_to: u64) -> Result<Bounded> {
     let metadata = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if !metadata.is_file() {
         return Err(Error::input(path, "file", "not a regular file"));
     }
     if !is_gzipped(path) {
         if metadata.len() > max_bytes {
-            return Ok(Bounded::Over(metadata.len()));
+            return Ok(Bounded::Over(Size::Exact(metadata.len())));
         }
         return std::fs::read(path)
             .map(Bounded::Within)
@@ -67,10 +86,41 @@ pub(crate) fn read_bounded(path: &Path, max_bytes: u64, count_excess: bool) -> R
     if bytes.len() as u64 <= max_bytes {
         return Ok(Bounded::Within(bytes));
     }
-    let rest = if count_excess {
-        std::io::copy(&mut decoder, &mut std::io::sink()).map_err(corrupt)?
+    let read = bytes.len() as u64;
+    let further = count_to.saturating_sub(read);
+    let rest = std::io::copy(&mut (&mut decoder).take(further + 1), &mut std::io::sink())
+        .map_err(corrupt)?;
+    Ok(Bounded::Over(if rest > further {
+        Size::MoreThan(read + further)
     } else {
-        0
-    };
-    Ok(Bounded::Over(bytes.len() as u64 + rest))
+        Size::Exact(read + rest)
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::surfels::volume::tests::{gzip, workdir};
+
+    #[test]
+    fn a_gzipped_file_past_its_bound_is_counted_only_as_far_as_asked() {
+        // A `.gz` can inflate a thousandfold: counting it to its end would take time without
+        // bound, so the count stops where the caller said and says so.
+        let dir = workdir("bounded-read");
+        let path = dir.join("zeros.raw.gz");
+        std::fs::write(&path, gzip(&vec![0; 1000])).unwrap();
+        let over = |count_to| match read_bounded(&path, 10, count_to).unwrap() {
+            Bounded::Over(size) => size,
+            Bounded::Within(_) => panic!("1,000 bytes read within a bound of 10"),
+        };
+        assert_eq!(over(100), Size::MoreThan(100));
+        assert_eq!(over(999), Size::MoreThan(999));
+        assert_eq!(over(1000), Size::Exact(1000));
+        assert_eq!(over(0), Size::MoreThan(11));
+        assert_eq!(Size::MoreThan(100).to_string(), "more than 100");
+        match read_bounded(&path, 1000, 0).unwrap() {
+            Bounded::Within(bytes) => assert_eq!(bytes.len(), 1000),
+            Bounded::Over(size) => panic!("1,000 bytes over a bound of 1,000: {size}"),
+        }
+    }
 }
