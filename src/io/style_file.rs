@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use super::scene_file::parse_toml;
 use crate::error::{Error, Result};
 use crate::raster::{Profile, Texture};
+use crate::scene::rgb;
 use crate::style::{
     Blend, Composite, Emitters, ObjectLook, RampBy, Select, SpeedLines, Style, Trail, TrailColour,
     MAX_TEXTURE_SIDE,
@@ -201,9 +202,10 @@ pub(crate) fn default_style() -> Style {
     build(StyleSpec::default(), Path::new("(default style)")).expect("the default style is valid")
 }
 
-/// A colour as the renderers store it (its range is [`Style::check`]'s to check).
-fn linear(c: [f64; 3]) -> [f32; 3] {
-    c.map(|x| x as f32)
+/// A colour as the renderers store it, checked as written (converted to `f32` first, a value
+/// beyond its range became infinite and was called not finite).
+fn linear(field: &str, c: [f64; 3], path: &Path) -> Result<[f32; 3]> {
+    rgb(field, c).map_err(|e| e.in_file(path, ""))
 }
 
 fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
@@ -212,7 +214,10 @@ fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
         draw: o.draw,
         flash: o.flash,
         opacity: o.opacity,
-        colour: o.colour.map(linear),
+        colour: o
+            .colour
+            .map(|c| linear("object.colour", c, path))
+            .transpose()?,
     };
     let t = &spec.trail;
     // A key the colour rule does not read is a mistake to point out, not to ignore.
@@ -244,7 +249,11 @@ fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
             ))
         }
         (TrailColourSpec::Ramp, Some(stops)) => TrailColour::Ramp {
-            stops: stops.iter().map(|&c| linear(c)).collect(),
+            stops: stops
+                .iter()
+                .enumerate()
+                .map(|(i, &c)| linear(&format!("trail.ramp[{i}]"), c, path))
+                .collect::<Result<_>>()?,
             by: t.ramp_by.unwrap_or(RampBy::Speed),
             speed_range: t.speed_range,
         },
@@ -290,12 +299,15 @@ fn build(spec: StyleSpec, path: &Path) -> Result<Style> {
         taper: s.taper,
         fade: s.fade,
         opacity: s.opacity,
-        colour: linear(s.colour),
+        colour: linear("speed_lines.colour", s.colour, path)?,
     };
     let style = Style {
         source: None,
         description: spec.description.unwrap_or_default(),
-        background: spec.background.map(linear),
+        background: spec
+            .background
+            .map(|c| linear("background", c, path))
+            .transpose()?,
         object,
         trail,
         speed_lines,
@@ -370,6 +382,28 @@ mod tests {
             },
             Style::default()
         );
+    }
+
+    /// A colour too large for the renderers' `f32` is out of range as written: converted first,
+    /// it was called "inf is not a finite number".
+    #[test]
+    fn a_colour_beyond_f32_is_out_of_range_as_written() {
+        for (text, field) in [
+            (
+                "[speed_lines]\ncolour = [1e39, 0, 0]",
+                "speed_lines.colour[0]",
+            ),
+            ("background = [0, 1e39, 0]", "background[1]"),
+            ("[object]\ncolour = [0, 0, 1e39]", "object.colour[2]"),
+            (
+                "[trail]\ncolour = \"ramp\"\nramp = [[0, 0, 0], [1e39, 0, 0]]",
+                "trail.ramp[1][0]",
+            ),
+        ] {
+            let message = error_of(text);
+            let expected = format!("{field}: {}: must be between 0 and 10000", 1e39);
+            assert!(message.contains(&expected), "{message}");
+        }
     }
 
     #[test]

@@ -44,7 +44,7 @@ const GRADIENT_PIECES: f64 = 16.0;
 const LINE_SAMPLES: usize = 32;
 
 /// A visible point counts as on the silhouette when the cosine between its normal and the view
-/// direction is below this (within about 70° of edge-on).
+/// direction is below this (the normal more than about 70° from it: within about 20° of edge-on).
 const SILHOUETTE_COSINE: f64 = 0.35;
 
 /// What the hint renderer did beyond the shared counts.
@@ -691,10 +691,12 @@ fn pick_starts(mut starts: Vec<LineStart>, look: &SpeedLines) -> Vec<LineStart> 
         }
         let end = start.end;
         let (cx, cy) = ((end.x / cell).floor() as i64, (end.y / cell).floor() as i64);
+        // Saturating: an end far off screen (a point just past a tiny near plane) lies in the
+        // last cell, where `+ 1` overflowed.
         let crowded = (-1..=1).any(|dy| {
             (-1..=1).any(|dx| {
                 taken
-                    .get(&(cx + dx, cy + dy))
+                    .get(&(cx.saturating_add(dx), cy.saturating_add(dy)))
                     .is_some_and(|ends| ends.iter().any(|e| e.distance(end) < look.spacing))
             })
         });
@@ -753,4 +755,23 @@ fn scatter(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point just in front of a near plane 10⁻²⁰ deep and one unit aside projects some 10²² px
+    /// off screen: its cell, 10²¹ spacings out, saturated i64, and the cell beside it overflowed.
+    #[test]
+    fn starts_beyond_i64_are_picked_without_overflow() {
+        let look = Style::default().speed_lines;
+        let start = |x: f64| LineStart {
+            end: DVec2::new(x, 10.0),
+            object: 0,
+            surfel: 0,
+        };
+        let picked = pick_starts(vec![start(1e22), start(-1e22), start(5.0)], &look);
+        assert_eq!(picked.len(), 3);
+    }
 }

@@ -4,9 +4,10 @@
 //! Per line: validate, clip the centre line (in f64, so that far-off points draw their visible
 //! part), build one ribbon outline with round joins and a round cap at the newest end, take its
 //! 8-bit coverage from tiny-skia (filled once with the non-zero rule, so a line never doubles its
-//! alpha where it overlaps itself), give each pixel the opacity of its nearest centre-line point
-//! by arc length, and composite colour "over" the earlier lines in linear f32. Bad geometry
-//! draws nothing and never panics. Derivation and choices: docs/math.md, "Hint trails".
+//! alpha where it overlaps itself), give each pixel the opacity, by arc length, of the
+//! centre-line point whose half width reaches furthest past it, and composite colour "over" the
+//! earlier lines in linear f32. Bad geometry draws nothing and never panics. Derivation and
+//! choices: docs/math.md, "Hint trails".
 
 use crate::framebuffer::Framebuffer;
 use crate::raster::over;
@@ -82,12 +83,15 @@ pub fn draw_over(lines: &[SpeedLine], look: &LineLook, image: &mut Framebuffer) 
 }
 
 /// The strokes of `lines`, as [`draw_over`] composites them. A zero-sized image gives empty
-/// strokes, and so does one whose strokes cannot be allocated (0 × 0).
+/// strokes, and so do no lines, a look that draws nothing and an image whose strokes cannot be
+/// allocated (0 × 0).
 fn strokes(lines: &[SpeedLine], look: &LineLook, width: u32, height: u32) -> Strokes {
-    let mut layer = Strokes::transparent(width, height);
-    let Some(style) = Style::new(look) else {
-        return layer;
+    // Checked before the layer is made, so that speed lines switched off cost nothing: they
+    // took 16 bytes a pixel and a pass over the image in every hint (1.4 s at 8192²).
+    let Some(style) = Style::new(look).filter(|_| !lines.is_empty()) else {
+        return Strokes::transparent(0, 0);
     };
+    let mut layer = Strokes::transparent(width, height);
     if layer.pixels.is_empty() {
         return layer;
     }
@@ -173,15 +177,16 @@ impl Strokes {
         mask.fill_path(&path, FillRule::Winding, true, Transform::identity());
 
         // Opacity by arc length, then colour and "over", one row at a time.
-        let segments = Segment::all(&runs, lo);
+        let segments = Segment::all(&runs, lo, style, length);
         let mut nearest = NearestSweep::new(&segments, box_width as usize, reach);
         let coverage_rows = mask.data().chunks_exact(box_width as usize);
         for (row, coverage) in coverage_rows.enumerate() {
-            let nearest_s = nearest.row(row, coverage);
-            let start = (y0 + row) * self.width as usize + x0;
-            let pixels = &mut self.pixels[start..start + coverage.len()];
-            for ((px, &cov), &(d2, s)) in pixels.iter_mut().zip(coverage).zip(nearest_s) {
-                if cov == 0 || !d2.is_finite() {
+            let (first, nearest_s) = nearest.row(row, coverage);
+            let start = (y0 + row) * self.width as usize + x0 + first;
+            let pixels = &mut self.pixels[start..start + nearest_s.len()];
+            let coverage = &coverage[first..];
+            for ((px, &cov), &(beyond, s)) in pixels.iter_mut().zip(coverage).zip(nearest_s) {
+                if cov == 0 || !beyond.is_finite() {
                     continue;
                 }
                 let alpha = (f64::from(cov) / 255.0 * style.opacity_at(s / length)) as f32;
@@ -457,17 +462,20 @@ fn round_arc(out: &mut Vec<DVec2>, centre: DVec2, h: f64, from: DVec2, middle: D
     }
 }
 
-/// A centre-line segment in mask coordinates, with arc lengths at its ends.
+/// A centre-line segment in mask coordinates, with arc lengths and half widths at its ends.
 struct Segment {
     a: DVec2,
     b: DVec2,
     s_a: f64,
     s_b: f64,
+    h_a: f64,
+    h_b: f64,
 }
 
 impl Segment {
-    /// All segments of `runs`, shifted by `-origin`, sorted by top edge.
-    fn all(runs: &[Run], origin: DVec2) -> Vec<Segment> {
+    /// All segments of `runs` of a line `length` long drawn as `style`, shifted by `-origin`,
+    /// sorted by top edge.
+    fn all(runs: &[Run], origin: DVec2, style: &Style, length: f64) -> Vec<Segment> {
         let mut segments: Vec<Segment> = runs
             .iter()
             .flat_map(|run| run.nodes.windows(2))
@@ -476,6 +484,8 @@ impl Segment {
                 b: w[1].p - origin,
                 s_a: w[0].s,
                 s_b: w[1].s,
+                h_a: style.half_width_at(w[0].s / length),
+                h_b: style.half_width_at(w[1].s / length),
             })
             .collect();
         segments.sort_by(|x, y| x.top().total_cmp(&y.top()));
@@ -490,12 +500,15 @@ impl Segment {
         self.a.y.max(self.b.y)
     }
 
-    /// Squared distance from `q` to the segment, and the arc length there.
+    /// At the segment's point nearest `q`: how far `q` lies beyond the half width there
+    /// (negative inside), and the arc length. (Where that is least lies k·|y|/√(1 − k²) further
+    /// on, k the half width's slope and |y| the distance across; it would lower the value by
+    /// about |y|·k²/2, under 0.02 px on lines 20 times longer than their width.)
     fn nearest(&self, q: DVec2) -> (f64, f64) {
         let d = self.b - self.a;
         let t = ((q - self.a).dot(d) / d.length_squared()).clamp(0.0, 1.0);
-        let d2 = q.distance_squared(self.a + t * d);
-        (d2, self.s_a + t * (self.s_b - self.s_a))
+        let beyond = q.distance(self.a + t * d) - (self.h_a + t * (self.h_b - self.h_a));
+        (beyond, self.s_a + t * (self.s_b - self.s_a))
     }
 
     /// An x range holding every point of the row `y` within `reach` of the
@@ -517,16 +530,23 @@ impl Segment {
     }
 }
 
-/// Finds, row by row, the nearest centre-line point of each covered pixel,
-/// looking only at segments whose `reach`-wide band crosses the row.
+/// Finds, row by row, the centre-line point whose half width reaches furthest
+/// past each covered pixel (the least [`Segment::nearest`] "beyond"), looking
+/// only at segments whose `reach`-wide band crosses the row: a covered pixel
+/// lies within [`AA_REACH_PX`] beyond some point's half width, and more than
+/// that beyond any point out of reach. By distance alone, a thin, faded older
+/// part running beside or back over a wide newer part took pixels that only
+/// the newer part covers.
 struct NearestSweep<'a> {
     segments: &'a [Segment],
     reach: f64,
     /// Next segment (by top edge) not yet active.
     next: usize,
     active: Vec<usize>,
-    /// Per column: squared distance and arc length of the nearest point.
+    /// Per column: "beyond" ([`Segment::nearest`]) and arc length of the point found.
     best: Vec<(f64, f64)>,
+    /// The columns of `best` the last row set.
+    reached: std::ops::Range<usize>,
 }
 
 impl<'a> NearestSweep<'a> {
@@ -537,13 +557,17 @@ impl<'a> NearestSweep<'a> {
             next: 0,
             active: Vec::new(),
             best: vec![(f64::INFINITY, 0.0); width],
+            reached: 0..0,
         }
     }
 
-    /// For row `row` (rows in increasing order), per column: the squared
-    /// distance and arc length of the nearest point, or an infinite distance
-    /// where `coverage` is 0 or no segment is within reach.
-    fn row(&mut self, row: usize, coverage: &[u8]) -> &[(f64, f64)] {
+    /// For row `row` (rows in increasing order): the first column a segment
+    /// reaches, and from there to the last, per column, "beyond" and the arc
+    /// length of the point found, or an infinite "beyond" where `coverage` is
+    /// 0 or no segment is within reach. Only those columns are visited, so
+    /// that a line costs about its own pixels rather than its bounding box's
+    /// (a diagonal across 8192² took 400 ms, now 90).
+    fn row(&mut self, row: usize, coverage: &[u8]) -> (usize, &[(f64, f64)]) {
         let y = row as f64 + 0.5;
         let (segments, reach) = (self.segments, self.reach);
         while let Some(segment) = segments.get(self.next) {
@@ -555,7 +579,8 @@ impl<'a> NearestSweep<'a> {
         }
         self.active.retain(|&i| segments[i].bottom() + reach >= y);
 
-        self.best.fill((f64::INFINITY, 0.0));
+        self.best[self.reached.clone()].fill((f64::INFINITY, 0.0));
+        let (mut reached_start, mut reached_end) = (usize::MAX, 0);
         let last_column = self.best.len() as f64 - 1.0;
         for &i in &self.active {
             let Some((x_lo, x_hi)) = segments[i].row_span(y, reach) else {
@@ -571,6 +596,8 @@ impl<'a> NearestSweep<'a> {
             }
             // Whole numbers inside 0..width.
             let columns = first as usize..last as usize + 1;
+            reached_start = reached_start.min(columns.start);
+            reached_end = reached_end.max(columns.end);
             let best = &mut self.best[columns.clone()];
             for ((column, best), &cov) in columns.clone().zip(best).zip(&coverage[columns]) {
                 if cov == 0 {
@@ -582,7 +609,8 @@ impl<'a> NearestSweep<'a> {
                 }
             }
         }
-        &self.best
+        self.reached = reached_start.min(reached_end)..reached_end;
+        (self.reached.start, &self.best[self.reached.clone()])
     }
 }
 
@@ -774,6 +802,54 @@ mod tests {
         for f in [0.1, 0.25, 0.5, 0.75, 0.9] {
             let got = alpha_at(&layer, at(f));
             assert!((f64::from(got) - f).abs() < 0.01, "f = {f}: alpha {got}");
+        }
+    }
+
+    /// A path that goes out and comes straight back (motion that reverses), and one whose thin
+    /// old part runs 6 px beside its wide new part (a hairpin): each pixel that only the new part
+    /// covers takes the new part's opacity, however close the old part's centre line is.
+    #[test]
+    fn a_thin_old_part_beside_or_under_a_wide_new_part_leaves_it_opaque() {
+        let look = LineLook {
+            width: 12.0,
+            taper: 0.1,
+            fade: 0.0,
+            opacity: 1.0,
+        };
+        let s = style(&look);
+        let back = SpeedLine {
+            points: vec![
+                DVec2::new(20.0, 50.5),
+                DVec2::new(180.0, 50.5),
+                DVec2::new(20.0, 50.5),
+            ],
+            colour: WHITE,
+        };
+        let layer = strokes(&[back], &look, 200, 100);
+        // On the way back at x = 25.5, near the newest end.
+        let u = (160.0 + 154.5) / 320.0;
+        let got = alpha(&layer, 25, 50);
+        assert!((f64::from(got) - s.opacity_at(u)).abs() < 0.01, "{got}");
+
+        let hairpin = SpeedLine {
+            points: vec![
+                DVec2::new(180.0, 56.0),
+                DVec2::new(20.0, 56.0),
+                DVec2::new(20.0, 50.0),
+                DVec2::new(180.0, 50.0),
+            ],
+            colour: WHITE,
+        };
+        let layer = strokes(&[hairpin], &look, 200, 100);
+        // At x = 150.5 the new part (u ≈ 0.91) is 5.5 px wide each way, to y = 55.5, and the
+        // old part (u ≈ 0.09) 1.1 px, from y = 54.9: rows 53 and 54 are the new part's alone.
+        let u = (166.0 + 130.5) / 326.0;
+        for y in [53, 54] {
+            let got = alpha(&layer, 150, y);
+            assert!(
+                (f64::from(got) - s.opacity_at(u)).abs() < 0.01,
+                "row {y}: {got}"
+            );
         }
     }
 
@@ -1025,6 +1101,21 @@ mod tests {
         assert!(huge.pixels.is_empty());
         let empty = strokes(&lines, &TAPERED, 0, 100);
         assert_eq!((empty.width, empty.height, empty.pixels.len()), (0, 100, 0));
+    }
+
+    /// Speed lines switched off, or drawn with nothing to see, make no layer of the image's
+    /// size (README, "What the plan leaves out": they cost nothing).
+    #[test]
+    fn no_lines_or_an_invisible_look_make_no_layer() {
+        let lines = [straight_line(WHITE)];
+        let invisible = LineLook {
+            opacity: 0.0,
+            ..TAPERED
+        };
+        for (lines, look) in [(&lines[..0], &TAPERED), (&lines[..], &invisible)] {
+            let layer = strokes(lines, look, 240, 100);
+            assert_eq!(layer.pixels.len(), 0, "{look:?}");
+        }
     }
 
     #[test]
