@@ -205,11 +205,20 @@ pub fn round_to_i64(x: f64) -> i64 {
 /// The stable form: q = −(b + sign(b)·√(b² − 4ac))/2, roots q/a and c/q, so neither root comes
 /// from subtracting nearly equal numbers. A leading term that is negligible against the others
 /// (|a| ≤ 1e-12·(|b| + |c|)) makes the equation linear: its second root lies beyond 10¹² of the
-/// scale and is left out. Non-finite coefficients give no roots.
+/// scale and is left out. Non-finite coefficients give no roots; finite ones of any size are
+/// solved as well as those near 1.
 #[must_use]
 pub fn quadratic_roots(a: f64, b: f64, c: f64) -> ([f64; 2], usize) {
     if !(a.is_finite() && b.is_finite() && c.is_finite()) {
         return ([0.0; 2], 0);
+    }
+    // Far from 1, b² and 4ac overflow (∞ − ∞) or underflow (a double root at −b/2a). The roots
+    // are those of the coefficients scaled by a power of two, which is exact.
+    let largest = a.abs().max(b.abs()).max(c.abs());
+    if largest > 0.0 && !(1e-100..=1e100).contains(&largest) {
+        let exponent = libm::ilogb(largest);
+        let [a, b, c] = [a, b, c].map(|v| libm::scalbn(v, -exponent));
+        return quadratic_roots(a, b, c);
     }
     let scale = b.abs() + c.abs();
     if a.abs() <= 1e-12 * scale || a == 0.0 {
@@ -468,5 +477,20 @@ mod tests {
         assert_eq!(quadratic_roots(f64::NAN, 1.0, 1.0).1, 0);
         // b = 0: symmetric roots.
         assert!(close(quadratic_roots(4.0, 0.0, -1.0), &[-0.5, 0.5]));
+    }
+
+    #[test]
+    fn quadratic_roots_do_not_depend_on_the_coefficients_scale() {
+        // 10x² − 10x + 1: roots ½ ∓ √15/10. Scaled by 10¹⁹⁹, b² and 4ac overflowed (∞ − ∞, two
+        // NaN roots); by 10⁻²⁰⁰ they underflowed to 0, a double root at ½.
+        let (small, large) = (0.5 - 15f64.sqrt() / 10.0, 0.5 + 15f64.sqrt() / 10.0);
+        for scale in [1.0, 1e199, 1e-200, 1e-300] {
+            let (roots, n) = quadratic_roots(10.0 * scale, -10.0 * scale, scale);
+            assert_eq!(n, 2, "scale {scale}: {roots:?}");
+            assert!(
+                (roots[0] - small).abs() < 1e-14 && (roots[1] - large).abs() < 1e-14,
+                "scale {scale}: {roots:?}"
+            );
+        }
     }
 }

@@ -3,6 +3,7 @@
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::scene::camera::MAX_IMAGE_SIDE;
+use image::ImageEncoder;
 use std::path::Path;
 
 /// The kinds of image file written.
@@ -61,14 +62,19 @@ pub fn write_png(image: &Framebuffer, path: &Path) -> Result<()> {
         .iter()
         .flat_map(|p| p.map(linear_to_srgb8))
         .collect();
-    image::save_buffer(
-        path,
-        &bytes,
-        image.width,
-        image.height,
-        image::ExtendedColorType::Rgb8,
-    )
-    .map_err(|e| image_error(path, e))
+    // Encoded in memory, then written as a whole: the image crate's PNG encoder writes its last
+    // chunk and flushes the file as they are dropped, where a failed write (a full disk) is lost,
+    // and a truncated file was reported as written.
+    let mut encoded = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut encoded)
+        .write_image(
+            &bytes,
+            image.width,
+            image.height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| image_error(path, e))?;
+    std::fs::write(path, encoded).map_err(|e| Error::io(path, e))
 }
 
 /// Write a linear float OpenEXR.
@@ -118,8 +124,7 @@ pub fn read_image(path: &Path) -> Result<Framebuffer> {
 }
 
 /// An image file's size and RGB values as stored: at most [`MAX_IMAGE_SIDE`] pixels a side,
-/// refused from the header before anything is decoded, within the image crate's default bound on
-/// what a decoder allocates (512 MiB).
+/// refused from the header before anything is decoded.
 fn decode(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     let mut reader = image::ImageReader::open(path)
         .map_err(|e| Error::io(path, e))?
@@ -128,11 +133,13 @@ fn decode(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_IMAGE_SIDE);
     limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    // The sides bound the decoded pixels, at most 16 bytes each (RGBA float). The image crate's
+    // default bound, 512 MiB, refused the EXRs streak writes from about 6,700 pixels square.
+    limits.max_alloc = Some(u64::from(MAX_IMAGE_SIDE).pow(2) * 16);
     reader.limits(limits);
     let decoded = reader.decode().map_err(|e| match e {
         image::ImageError::Limits(_) => Error::Usage(format!(
-            "{}: larger than streak reads (at most {MAX_IMAGE_SIDE} pixels a side, 512 MiB \
-             decoded)",
+            "{}: larger than streak reads (at most {MAX_IMAGE_SIDE} pixels a side)",
             path.display()
         )),
         other => image_error(path, other),
@@ -216,6 +223,70 @@ mod tests {
         let back = read_exr(&path).unwrap();
         std::fs::remove_file(&path).ok();
         assert_eq!(back, image);
+    }
+
+    /// The bytes of a 1 × 1 EXR whose header claims `width` × `height`: read, it meets the size
+    /// bounds with no more than a header's worth of data behind them.
+    fn exr_claiming(width: u32, height: u32) -> Vec<u8> {
+        let path = std::env::temp_dir().join(format!("streak-exr-1-{}.exr", std::process::id()));
+        write_exr(&Framebuffer::filled(1, 1, [0.5; 3]), &path).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).ok();
+        // Each attribute's value, after its name, its type and its size.
+        let value = |bytes: &[u8], name: &str, kind: &str| {
+            let key = format!("{name}\0{kind}\0");
+            let at = bytes
+                .windows(key.len())
+                .position(|w| w == key.as_bytes())
+                .unwrap();
+            at + key.len() + 4
+        };
+        let word =
+            |bytes: &[u8], at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+        let tiles = value(&bytes, "tiles", "tiledesc");
+        let (tile_width, tile_height) = (word(&bytes, tiles), word(&bytes, tiles + 4));
+        let chunks = width.div_ceil(tile_width) * height.div_ceil(tile_height);
+        let at = value(&bytes, "chunkCount", "int");
+        bytes[at..at + 4].copy_from_slice(&chunks.to_le_bytes());
+        for name in ["dataWindow", "displayWindow"] {
+            // x min, y min, x max and y max.
+            let at = value(&bytes, name, "box2i") + 8;
+            bytes[at..at + 4].copy_from_slice(&(width - 1).to_le_bytes());
+            bytes[at + 4..at + 8].copy_from_slice(&(height - 1).to_le_bytes());
+        }
+        bytes
+    }
+
+    #[test]
+    fn an_exr_as_large_as_streak_renders_is_not_refused_for_its_size() {
+        let path = std::env::temp_dir().join(format!("streak-exr-big-{}.exr", std::process::id()));
+        let side = MAX_IMAGE_SIDE;
+        std::fs::write(&path, exr_claiming(side, side)).unwrap();
+        // Its pixel data is missing, so it cannot be read; but not for being too large.
+        let largest = read_exr(&path).unwrap_err().to_string();
+        std::fs::write(&path, exr_claiming(side + 1, 1)).unwrap();
+        let wider = read_exr(&path).unwrap_err().to_string();
+        std::fs::remove_file(&path).ok();
+        assert!(!largest.contains("larger than streak reads"), "{largest}");
+        assert!(wider.contains("larger than streak reads"), "{wider}");
+    }
+
+    /// `/dev/full` takes any file name and fails every write, as a full disk does.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn an_image_that_cannot_be_written_is_an_error() {
+        let dir = std::env::temp_dir().join(format!("streak-full-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let image = Framebuffer::filled(16, 16, [0.5; 3]);
+        for name in ["full.png", "full.exr"] {
+            let path = dir.join(name);
+            std::os::unix::fs::symlink("/dev/full", &path).unwrap();
+            let written = write_image(&image, &path);
+            std::fs::remove_file(&path).unwrap();
+            let message = written.map_err(|e| e.to_string()).unwrap_err();
+            assert!(message.contains("No space left"), "{name}: {message}");
+        }
+        std::fs::remove_dir(&dir).unwrap();
     }
 
     #[test]

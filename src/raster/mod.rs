@@ -1,12 +1,12 @@
-//! The shared rasterizer: screen-space Gaussian footprints → depth order → tiles → pixels.
+//! The shared rasterizer: screen-space Gaussian footprints → tiles → depth order → pixels.
 //!
 //! Every splat renderer ends here. A footprint is an elliptical Gaussian in pixels whose integral
-//! is the (time-weighted) screen area its surfel covers. Footprints are sorted once by depth and
-//! binned into the [`tiles`] in that order; tiles render in parallel, each owning its pixels and
-//! working sequentially inside, so the image bits do not depend on the thread count. Per pixel,
-//! [`composite`] groups footprints into surfaces and composites them front to back into a
-//! premultiplied [`Layer`]. Conventions: docs/conventions.md, "Premultiplied layers" and "Depth
-//! tests".
+//! is the (time-weighted) screen area its surfel covers. Footprints are binned into the [`tiles`]
+//! in their own order and each tile sorts its list by depth (the index breaking ties); tiles render
+//! in parallel, each owning its pixels and working sequentially inside, so the image bits do not
+//! depend on the thread count. Per pixel, [`composite`] groups footprints into surfaces and
+//! composites them front to back into a premultiplied [`Layer`]. Conventions:
+//! docs/conventions.md, "Premultiplied layers" and "Depth tests".
 
 mod composite;
 mod profile;
@@ -109,7 +109,8 @@ pub struct Footprint {
     pub center: [f32; 2],
     /// Inverse covariance (xx, xy, yy).
     pub conic: [f32; 3],
-    /// Value at the centre: weight / (2π √det Σ).
+    /// Weight / (the profile's integral in unit coordinates · √det Σ): for a Gaussian, its value at
+    /// the centre, weight · [`TRUNCATION_GAIN`] / (2π √det Σ).
     pub amplitude: f32,
     /// Linear RGB.
     pub colour: [f32; 3],
@@ -279,22 +280,29 @@ impl ScreenSplat {
             .as_ref()
             .map_or_else(|| self.profile.integral(), |s| s.integral);
         let amplitude = self.weight / (integral * covariance.det().sqrt());
+        // Finite in the f32 they are packed into: a depth of 10³⁹ (a scene scaled by 10³⁸) is
+        // finite in f64 but infinite there, where the depth test's ∞ − ∞ is NaN. The covering
+        // time's gradient (1/chord for a motion ellipse) may overflow: the time is clamped to
+        // the span.
+        let packs = |v: f64| (v as f32).is_finite();
         if !(amplitude > 1e-12
-            && amplitude.is_finite()
-            && self.center.is_finite()
-            && self.depth.is_finite()
-            && self.depth_gradient.is_finite()
-            && self.depth_tolerance.is_finite()
-            && self.depth_rate.is_finite()
             && self.time.gradient.is_finite()
             && [
+                amplitude,
+                self.center.x,
+                self.center.y,
+                self.depth,
+                self.depth_gradient.x,
+                self.depth_gradient.y,
+                self.depth_tolerance,
+                self.depth_rate,
                 self.time.center,
                 self.time.half_width,
                 self.time.span[0],
                 self.time.span[1],
             ]
-            .iter()
-            .all(|t| t.is_finite()))
+            .into_iter()
+            .all(packs))
         {
             return Err(Rejection::Degenerate);
         }
@@ -1163,6 +1171,49 @@ mod tests {
             1.0,
         );
         assert_eq!(nan.footprint(64, 64), Err(Rejection::Degenerate));
+    }
+
+    /// Packing is where f64 becomes f32 (docs/conventions.md, "Precision: f64 and f32"): a
+    /// number finite in f64 but beyond f32's range cannot be represented there and is degenerate,
+    /// like a non-finite one. Packed as infinity, a depth of 10³⁹ (a scene scaled by 10³⁸) made
+    /// every footprint a surface of its own (∞ − ∞ is NaN in the depth test), and an amplitude
+    /// of ∞ painted NaN.
+    #[test]
+    fn numbers_beyond_f32_are_rejected_when_packed() {
+        let s = gaussian(
+            DVec2::new(32.0, 32.0),
+            Sym2::isotropic(1.0),
+            1.0,
+            [1.0, 0.0, 0.0],
+            1.0,
+        );
+        let huge = 1e39;
+        for beyond in [
+            ScreenSplat { depth: huge, ..s },
+            ScreenSplat {
+                depth_tolerance: huge,
+                ..s
+            },
+            ScreenSplat {
+                depth_rate: huge,
+                ..s
+            },
+            ScreenSplat {
+                depth_gradient: DVec2::new(huge, 0.0),
+                ..s
+            },
+            ScreenSplat {
+                weight: 100.0 * huge,
+                ..s
+            },
+        ] {
+            let packed = beyond.footprint(64, 64);
+            assert_eq!(
+                packed.as_ref().err(),
+                Some(&Rejection::Degenerate),
+                "{beyond:?} packed as {packed:?}"
+            );
+        }
     }
 
     #[test]
