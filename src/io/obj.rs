@@ -9,7 +9,7 @@ use glam::DVec3;
 use super::ply::parse_ply_mesh;
 use super::read::{self, read_file};
 use crate::error::{Error, Result};
-use crate::surfels::mesh::Mesh;
+use crate::surfels::mesh::{too_large, Mesh, MAX_MESH_TRIANGLES, MAX_MESH_VERTICES};
 
 /// Largest mesh file read, after decompression: 2 GiB holds tens of millions of triangles, and a
 /// bound keeps a corrupt or hostile `.gz` from exhausting memory.
@@ -80,8 +80,8 @@ impl Mesh {
 /// messages). Reads `v x y z` (a fourth number or vertex colours after it are ignored) and faces
 /// `f` whose corners are `v`, `v/vt`, `v/vt/vn` or `v//vn`, counted from 1, or back from the
 /// latest vertex when negative (−1 is the latest); a polygon is fan-triangulated around its
-/// first corner. Comments (`#` to the end of the line) and every other statement (`vn`, `vt`,
-/// `o`, `g`, `s`, `usemtl`, `l`, …) are skipped.
+/// first corner. Comments (`#` to the end of the line), a UTF-8 byte order mark and every other
+/// statement (`vn`, `vt`, `o`, `g`, `s`, `usemtl`, `l`, …) are skipped.
 ///
 /// Every problem is an [`Error::Input`] naming the file and the line: a coordinate missing, not a
 /// number or not finite, a face of fewer than 3 corners, a corner that is not a number, index 0,
@@ -92,6 +92,8 @@ pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<Mesh> {
     // so the range check waits for the end of the file.
     let mut largest: Option<(u64, usize)> = None;
     let mut corners: Vec<u32> = Vec::new();
+    // A UTF-8 byte order mark, which some editors write first, would be part of the first word.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     for (number, raw_line) in bytes.split(|&b| b == b'\n').enumerate() {
         let line = number + 1;
         let error = |message: String| Error::input(path, format!("line {line}"), message);
@@ -118,11 +120,8 @@ pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<Mesh> {
                             ))
                         })?;
                 }
-                if mesh.positions.len() >= u32::MAX as usize {
-                    return Err(error(format!(
-                        "{} vertices or more: too many for one mesh",
-                        u32::MAX
-                    )));
+                if mesh.positions.len() >= MAX_MESH_VERTICES {
+                    return Err(too_large(path, format!("line {line}"), "vertices"));
                 }
                 mesh.positions.push(DVec3::from_array(xyz));
             }
@@ -166,6 +165,9 @@ pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<Mesh> {
                         "a face of {} corners: a face needs at least 3",
                         corners.len()
                     )));
+                }
+                if mesh.triangles.len() + corners.len() - 2 > MAX_MESH_TRIANGLES {
+                    return Err(too_large(path, format!("line {line}"), "triangles"));
                 }
                 // A fan around the first corner keeps the polygon's winding in every triangle.
                 mesh.triangles.extend(
@@ -305,6 +307,27 @@ mod tests {
         let mut expected = vec![[0, 1, 2]; 5];
         expected.extend([[0, 1, 2], [0, 2, 3]]);
         assert_eq!(mesh.triangles, expected);
+    }
+
+    #[test]
+    fn a_polygon_whose_fan_passes_the_triangle_bound_is_refused() {
+        // Two bytes of text a corner, twelve bytes a triangle (more once drawn): one line of a
+        // 67 MB file would make 2²⁵ + 1 triangles.
+        let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nf");
+        text.push_str(&" 1".repeat(MAX_MESH_TRIANGLES + 3));
+        let message = obj_error(&text, 4);
+        assert!(
+            message.contains("more than 33554432 triangles"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn a_byte_order_mark_before_the_first_statement_is_not_part_of_it() {
+        // Editors on Windows may begin a UTF-8 file with U+FEFF; glued to the first `v`, it made
+        // the word `\u{feff}v`, so that vertex was skipped and every face's indices shifted.
+        let mesh = obj("\u{feff}v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
+        assert_eq!(mesh, square(1.0));
     }
 
     #[test]

@@ -10,7 +10,7 @@ use super::image::srgb_to_linear;
 use super::read::read_file;
 use crate::error::{Error, Result};
 use crate::surfels::cloud::PointCloud;
-use crate::surfels::mesh::Mesh;
+use crate::surfels::mesh::{too_large, Mesh, MAX_MESH_TRIANGLES, MAX_MESH_VERTICES};
 
 // ---------------------------------------------------------------------------------------------
 // PLY reading
@@ -80,16 +80,8 @@ pub fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Mesh> {
     let header = parse_header(bytes, path)?;
     let vertex_element = vertex_element(&header, path)?;
     let vertices = &header.elements[vertex_element];
-    if u32::try_from(vertices.count).is_err() {
-        return Err(Error::input(
-            path,
-            "element vertex",
-            format!(
-                "{} vertices: a mesh may have at most {}",
-                vertices.count,
-                u32::MAX
-            ),
-        ));
+    if vertices.count > MAX_MESH_VERTICES {
+        return Err(too_large(path, "element vertex".into(), "vertices"));
     }
     let layout = VertexLayout {
         position: position_properties(vertices, path)?,
@@ -98,6 +90,10 @@ pub fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Mesh> {
         radius: None,
     };
     let (face_element, list) = face_list(&header, path)?;
+    // Every face is at least one triangle.
+    if header.elements[face_element].count > MAX_MESH_TRIANGLES {
+        return Err(too_large(path, "element face".into(), "triangles"));
+    }
     let mut reader = BodyReader::new(&header, bytes);
     let mut mesh = Mesh::default();
     let last = vertex_element.max(face_element);
@@ -261,6 +257,9 @@ fn read_faces(
                      numbered from 0"
                 ),
             ));
+        }
+        if triangles.len() + corners.len() - 2 > MAX_MESH_TRIANGLES {
+            return Err(too_large(path, field(), "triangles"));
         }
         // A polygon is cut into a fan around its first corner; the corners keep their order, so
         // every triangle keeps the polygon's winding.
@@ -1623,6 +1622,28 @@ mod tests {
     /// Parses `bytes` as a mesh, expecting an error that names the file and `field`.
     fn expect_mesh_error(bytes: &[u8], field: &str) -> String {
         error_naming(parse_mesh(bytes), field)
+    }
+
+    #[test]
+    fn a_mesh_of_more_vertices_or_faces_than_streak_reads_is_refused_from_its_header() {
+        // A few bytes of header may declare any count; each face is at least one triangle.
+        for (element, count, what) in [
+            ("vertex", MAX_MESH_VERTICES + 1, "vertices"),
+            ("face", MAX_MESH_TRIANGLES + 1, "triangles"),
+        ] {
+            let text = format!(
+                "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+                 property float z\nelement face {}\nproperty list uchar int vertex_indices\n\
+                 end_header\n",
+                if element == "vertex" { count } else { 3 },
+                if element == "face" { count } else { 1 },
+            );
+            let message = expect_mesh_error(text.as_bytes(), &format!("element {element}"));
+            assert!(
+                message.contains(&format!("more than 33554432 {what}")),
+                "{message}"
+            );
+        }
     }
 
     #[test]

@@ -17,6 +17,34 @@ use super::{Surfel, DEFAULT_GREY, MAX_SURFEL_BUDGET};
 use crate::error::{Error, Result};
 use crate::math::{outer3, MortonCurve, Sym2};
 
+/// Most vertices a mesh file may define (33.5 M, a scan of Lucy's size fits): 24 bytes each as
+/// read, and text of 8 bytes a vertex could otherwise name 268 M within the file size bound.
+pub const MAX_MESH_VERTICES: usize = 1 << 25;
+
+/// Most triangles a mesh may have once its polygons are cut into fans (33.5 M): drawn as
+/// triangles, each holds its corners' normals in f64 (84 bytes with its indices), so the bound
+/// keeps a mesh near 3 GB, where a polygon's corner costs 2 bytes of text and a 2 GiB file could
+/// name a billion triangles.
+pub const MAX_MESH_TRIANGLES: usize = 1 << 25;
+
+/// The error for a mesh with more than [`MAX_MESH_VERTICES`] vertices or [`MAX_MESH_TRIANGLES`]
+/// triangles (`what`), at `field` of the file at `path`.
+pub(crate) fn too_large(path: &std::path::Path, field: String, what: &str) -> Error {
+    let most = if what == "vertices" {
+        MAX_MESH_VERTICES
+    } else {
+        MAX_MESH_TRIANGLES
+    };
+    Error::input(
+        path,
+        field,
+        format!(
+            "more than {most} {what} (polygons counted as the triangles of their fans): streak \
+             reads meshes up to that size; decimate it in a mesh tool first"
+        ),
+    )
+}
+
 /// A triangle mesh: vertex positions and triangles as indices into them, each wound
 /// counter-clockwise seen from the side its normal points to.
 #[derive(Clone, Debug, Default, PartialEq)]
