@@ -513,7 +513,8 @@ impl<'a> Plan<'a> {
             line(format!("  off-screen: {}", c.off_screen));
             line(format!("  behind the near plane: {}", c.behind_near));
             line(format!(
-                "  no weight (edge-on, no shutter time): {}",
+                "  no weight or beyond f32 (edge-on, no shutter time, or numbers too large to \
+                 draw): {}",
                 c.degenerate
             ));
         }

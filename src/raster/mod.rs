@@ -201,7 +201,8 @@ impl Passage {
 pub enum Rejection {
     /// Its whole extent lies outside the image.
     OffScreen,
-    /// It carries no weight (seen edge-on, or no shutter time) or its numbers are not finite.
+    /// It carries no weight (seen edge-on, or no shutter time) or its numbers are not finite in
+    /// the `f32` it is drawn in.
     Degenerate,
 }
 
