@@ -183,7 +183,8 @@ struct RenderArgs {
     #[arg(long)]
     traced: bool,
     /// Level of detail: `auto` merges surfels where the image cannot tell them apart (along the
-    /// motion of what is drawn blurred, and within a pixel); `off` draws every surfel.
+    /// motion of what is drawn blurred, and within a pixel) and simplifies moving triangle meshes
+    /// by their screen speed; `off` draws every surfel and face.
     #[arg(long, value_enum, default_value = "auto")]
     lod: LodName,
     /// Print the plan, and what was left out and why, with counts.
