@@ -30,17 +30,20 @@ pub const MAX_MESH_TRIANGLES: usize = 1 << 25;
 /// The error for a mesh with more than [`MAX_MESH_VERTICES`] vertices or [`MAX_MESH_TRIANGLES`]
 /// triangles (`what`), at `field` of the file at `path`.
 pub(crate) fn too_large(path: &std::path::Path, field: String, what: &str) -> Error {
-    let most = if what == "vertices" {
-        MAX_MESH_VERTICES
+    let (most, counted) = if what == "vertices" {
+        (MAX_MESH_VERTICES, "")
     } else {
-        MAX_MESH_TRIANGLES
+        (
+            MAX_MESH_TRIANGLES,
+            " (polygons counted as the triangles of their fans)",
+        )
     };
     Error::input(
         path,
         field,
         format!(
-            "more than {most} {what} (polygons counted as the triangles of their fans): streak \
-             reads meshes up to that size; decimate it in a mesh tool first"
+            "more than {most} {what}{counted}: streak reads meshes up to that size; decimate it \
+             in a mesh tool first"
         ),
     )
 }
