@@ -271,7 +271,15 @@ pub fn converged_reference(
 /// cached then.
 fn reference_key(scene: &Scene, source: &Path, samples: usize) -> Result<Option<u64>> {
     let text = std::fs::read_to_string(source).map_err(|e| Error::io(source, e))?;
-    let Some(program) = std::env::current_exe().and_then(std::fs::read).ok() else {
+    // Read and hashed once a process: a study keys two references.
+    static PROGRAM: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    let program = PROGRAM.get_or_init(|| {
+        let bytes = std::env::current_exe().and_then(std::fs::read).ok()?;
+        let mut hasher = crate::cache::hasher();
+        bytes.hash(&mut hasher);
+        Some(hasher.finish())
+    });
+    let Some(program) = *program else {
         return Ok(None);
     };
     let mut hasher = crate::cache::hasher();
@@ -303,7 +311,7 @@ fn reference_key(scene: &Scene, source: &Path, samples: usize) -> Result<Option<
             }),
         );
     }
-    program.hash(&mut hasher);
+    hasher.write_u64(program);
     Ok(Some(hasher.finish()))
 }
 

@@ -9,7 +9,7 @@ use glam::DVec3;
 use super::ply::parse_ply_mesh;
 use super::read::{self, read_file};
 use crate::error::{Error, Result};
-use crate::surfels::mesh::{too_large, Mesh, MAX_MESH_TRIANGLES, MAX_MESH_VERTICES};
+use crate::surfels::mesh::{Mesh, MeshPart};
 
 /// Largest mesh file read, after decompression: 2 GiB holds tens of millions of triangles, and a
 /// bound keeps a corrupt or hostile `.gz` from exhausting memory.
@@ -120,9 +120,8 @@ pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<Mesh> {
                             ))
                         })?;
                 }
-                if mesh.positions.len() >= MAX_MESH_VERTICES {
-                    return Err(too_large(path, format!("line {line}"), "vertices"));
-                }
+                MeshPart::Vertices
+                    .check(mesh.positions.len() + 1, path, || format!("line {line}"))?;
                 mesh.positions.push(DVec3::from_array(xyz));
             }
             Some("f") => {
@@ -166,9 +165,8 @@ pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<Mesh> {
                         corners.len()
                     )));
                 }
-                if mesh.triangles.len() + corners.len() - 2 > MAX_MESH_TRIANGLES {
-                    return Err(too_large(path, format!("line {line}"), "triangles"));
-                }
+                let triangles = mesh.triangles.len() + corners.len() - 2;
+                MeshPart::Triangles.check(triangles, path, || format!("line {line}"))?;
                 // A fan around the first corner keeps the polygon's winding in every triangle.
                 mesh.triangles.extend(
                     (1..corners.len() - 1).map(|k| [corners[0], corners[k], corners[k + 1]]),
@@ -311,6 +309,7 @@ mod tests {
 
     #[test]
     fn a_polygon_whose_fan_passes_the_triangle_bound_is_refused() {
+        use crate::surfels::mesh::MAX_MESH_TRIANGLES;
         // Two bytes of text a corner, twelve bytes a triangle (more once drawn): one line of a
         // 67 MB file would make 2²⁵ + 1 triangles.
         let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nf");

@@ -10,7 +10,7 @@ use super::image::srgb_to_linear;
 use super::read::read_file;
 use crate::error::{Error, Result};
 use crate::surfels::cloud::PointCloud;
-use crate::surfels::mesh::{too_large, Mesh, MAX_MESH_TRIANGLES, MAX_MESH_VERTICES};
+use crate::surfels::mesh::{Mesh, MeshPart};
 
 // ---------------------------------------------------------------------------------------------
 // PLY reading
@@ -80,9 +80,7 @@ pub fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Mesh> {
     let header = parse_header(bytes, path)?;
     let vertex_element = vertex_element(&header, path)?;
     let vertices = &header.elements[vertex_element];
-    if vertices.count > MAX_MESH_VERTICES {
-        return Err(too_large(path, "element vertex".into(), "vertices"));
-    }
+    MeshPart::Vertices.check(vertices.count, path, || "element vertex".into())?;
     let layout = VertexLayout {
         position: position_properties(vertices, path)?,
         normal: None,
@@ -91,9 +89,9 @@ pub fn parse_ply_mesh(bytes: &[u8], path: &Path) -> Result<Mesh> {
     };
     let (face_element, list) = face_list(&header, path)?;
     // Every face is at least one triangle.
-    if header.elements[face_element].count > MAX_MESH_TRIANGLES {
-        return Err(too_large(path, "element face".into(), "triangles"));
-    }
+    MeshPart::Triangles.check(header.elements[face_element].count, path, || {
+        "element face".into()
+    })?;
     let mut reader = BodyReader::new(&header, bytes);
     let mut mesh = Mesh::default();
     let last = vertex_element.max(face_element);
@@ -258,9 +256,7 @@ fn read_faces(
                 ),
             ));
         }
-        if triangles.len() + corners.len() - 2 > MAX_MESH_TRIANGLES {
-            return Err(too_large(path, field(), "triangles"));
-        }
+        MeshPart::Triangles.check(triangles.len() + corners.len() - 2, path, field)?;
         // A polygon is cut into a fan around its first corner; the corners keep their order, so
         // every triangle keeps the polygon's winding.
         let corner = |k: usize| corners[k] as u32;
@@ -1626,6 +1622,7 @@ mod tests {
 
     #[test]
     fn a_mesh_of_more_vertices_or_faces_than_streak_reads_is_refused_from_its_header() {
+        use crate::surfels::mesh::{MAX_MESH_TRIANGLES, MAX_MESH_VERTICES};
         // A few bytes of header may declare any count; each face is at least one triangle.
         for (element, count, what) in [
             ("vertex", MAX_MESH_VERTICES + 1, "vertices"),

@@ -27,25 +27,43 @@ pub const MAX_MESH_VERTICES: usize = 1 << 25;
 /// name a billion triangles.
 pub const MAX_MESH_TRIANGLES: usize = 1 << 25;
 
-/// The error for a mesh with more than [`MAX_MESH_VERTICES`] vertices or [`MAX_MESH_TRIANGLES`]
-/// triangles (`what`), at `field` of the file at `path`.
-pub(crate) fn too_large(path: &std::path::Path, field: String, what: &str) -> Error {
-    let (most, counted) = if what == "vertices" {
-        (MAX_MESH_VERTICES, "")
-    } else {
-        (
-            MAX_MESH_TRIANGLES,
-            " (polygons counted as the triangles of their fans)",
-        )
-    };
-    Error::input(
-        path,
-        field,
-        format!(
-            "more than {most} {what}{counted}: streak reads meshes up to that size; decimate it \
-             in a mesh tool first"
-        ),
-    )
+/// What a mesh file's size is bounded in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum MeshPart {
+    /// At most [`MAX_MESH_VERTICES`].
+    Vertices,
+    /// At most [`MAX_MESH_TRIANGLES`], polygons counted as the triangles of their fans.
+    Triangles,
+}
+
+impl MeshPart {
+    /// An error naming the file at `path` and its `field` (made only then) when a mesh would hold
+    /// `count` of this part, more than its bound.
+    pub(crate) fn check(
+        self,
+        count: usize,
+        path: &std::path::Path,
+        field: impl FnOnce() -> String,
+    ) -> Result<()> {
+        let (most, what) = match self {
+            MeshPart::Vertices => (MAX_MESH_VERTICES, "vertices"),
+            MeshPart::Triangles => (
+                MAX_MESH_TRIANGLES,
+                "triangles (polygons counted as the triangles of their fans)",
+            ),
+        };
+        if count <= most {
+            return Ok(());
+        }
+        Err(Error::input(
+            path,
+            field(),
+            format!(
+                "more than {most} {what}: streak reads meshes up to that size; decimate it in a \
+                 mesh tool first"
+            ),
+        ))
+    }
 }
 
 /// A triangle mesh: vertex positions and triangles as indices into them, each wound
