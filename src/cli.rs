@@ -2,12 +2,14 @@
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 use streak::gallery::{self, toml_files, GalleryOptions};
 use streak::io::image as output;
 use streak::io::obj::write_mesh;
+use streak::io::write::write_whole;
 use streak::lod::Lod;
 use streak::metrics;
 use streak::plot::{write_error_vs_time_svg, write_study_csv};
@@ -566,8 +568,9 @@ fn run_study(args: StudyArgs) -> Result<()> {
     for method in ["blur", "kernel3d", "analytic"] {
         report.push_str(&study::equal_error(&points, method));
     }
-    std::fs::write(args.output.join("study.md"), &report)
-        .map_err(|e| Error::io(&args.output, e))?;
+    let report_path = args.output.join("study.md");
+    write_whole(&report_path, |out| out.write_all(report.as_bytes()))
+        .map_err(|e| Error::io(&report_path, e))?;
     print_quietly(&report);
     eprintln!("wrote {}", args.output.join("study.csv").display());
     Ok(())

@@ -13,6 +13,7 @@
 use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::io::image::write_png;
+use crate::io::write::write_whole;
 use crate::lod::Lod;
 use crate::metrics::{compare, ImageError};
 use crate::plan::Plan;
@@ -22,6 +23,7 @@ use crate::style::Style;
 use crate::surfels::Budget;
 use indicatif::ProgressBar;
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -233,8 +235,8 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
         });
     }
     let page = options.out_dir.join("index.html");
-    std::fs::write(&page, index_html(&rows, &options.styles, options.samples))
-        .map_err(|e| Error::io(&page, e))?;
+    let html = index_html(&rows, &options.styles, options.samples);
+    write_whole(&page, |out| out.write_all(html.as_bytes())).map_err(|e| Error::io(&page, e))?;
     Ok(rows)
 }
 

@@ -2,6 +2,7 @@
 //! of its quality knob, measured against a converged reference.
 
 use crate::error::{Error, Result};
+use crate::io::write::write_whole;
 use crate::metrics::ImageError;
 use plotters::coord::combinators::{LogCoord, WithKeyPoints};
 use plotters::coord::Shift;
@@ -9,6 +10,7 @@ use plotters::element::DynElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::ops::Range;
 use std::path::Path;
 
@@ -56,7 +58,7 @@ pub fn write_error_vs_time_svg(points: &[StudyPoint], title: &str, path: &Path) 
             std::io::Error::other(format!("drawing the plot: {e}")),
         )
     })?;
-    std::fs::write(path, svg).map_err(|e| Error::io(path, e))?;
+    write_whole(path, |out| out.write_all(svg.as_bytes())).map_err(|e| Error::io(path, e))?;
     Ok(left_out)
 }
 
@@ -82,7 +84,7 @@ pub fn write_study_csv(points: &[StudyPoint], path: &Path) -> Result<()> {
             error.flip
         );
     }
-    std::fs::write(path, csv).map_err(|e| Error::io(path, e))
+    write_whole(path, |out| out.write_all(csv.as_bytes())).map_err(|e| Error::io(path, e))
 }
 
 fn is_positive_finite(value: f64) -> bool {

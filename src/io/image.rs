@@ -4,7 +4,10 @@ use crate::error::{Error, Result};
 use crate::framebuffer::Framebuffer;
 use crate::scene::camera::MAX_IMAGE_SIDE;
 use image::ImageEncoder;
+use std::io::Write;
 use std::path::Path;
+
+use super::write::write_whole;
 
 /// The kinds of image file written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,22 +44,27 @@ pub fn write_image(image: &Framebuffer, path: &Path) -> Result<()> {
     }
 }
 
-fn create_parent(path: &Path) -> Result<()> {
-    match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
-        }
-        _ => Ok(()),
-    }
-}
-
 fn image_error(path: &Path, e: image::ImageError) -> Error {
     Error::io(path, std::io::Error::other(e))
 }
 
+/// The error for an image whose pixels are not `width × height`, as a library caller's
+/// hand-built [`Framebuffer`] may be.
+fn size_error(image: &Framebuffer, path: &Path) -> Error {
+    Error::Usage(format!(
+        "{}: the image holds {} pixels, not {} × {}: not written",
+        path.display(),
+        image.pixels.len(),
+        image.width,
+        image.height
+    ))
+}
+
 /// Write an 8-bit sRGB PNG.
 pub fn write_png(image: &Framebuffer, path: &Path) -> Result<()> {
-    create_parent(path)?;
+    if image.pixels.len() as u64 != u64::from(image.width) * u64::from(image.height) {
+        return Err(size_error(image, path));
+    }
     let bytes: Vec<u8> = image
         .pixels
         .iter()
@@ -74,23 +82,20 @@ pub fn write_png(image: &Framebuffer, path: &Path) -> Result<()> {
             image::ExtendedColorType::Rgb8,
         )
         .map_err(|e| image_error(path, e))?;
-    std::fs::write(path, encoded).map_err(|e| Error::io(path, e))
+    write_whole(path, |out| out.write_all(&encoded)).map_err(|e| Error::io(path, e))
 }
 
 /// Write a linear float OpenEXR.
 pub fn write_exr(image: &Framebuffer, path: &Path) -> Result<()> {
-    create_parent(path)?;
     let data: Vec<f32> = image.pixels.iter().flatten().copied().collect();
-    let buffer =
-        image::Rgb32FImage::from_raw(image.width, image.height, data).ok_or_else(|| {
-            Error::Usage(format!(
-                "{}: image buffer has the wrong size",
-                path.display()
-            ))
-        })?;
-    image::DynamicImage::ImageRgb32F(buffer)
-        .save_with_format(path, image::ImageFormat::OpenExr)
-        .map_err(|e| image_error(path, e))
+    let buffer = image::Rgb32FImage::from_raw(image.width, image.height, data)
+        .ok_or_else(|| size_error(image, path))?;
+    write_whole(path, |out| {
+        image::DynamicImage::ImageRgb32F(buffer)
+            .write_to(out, image::ImageFormat::OpenExr)
+            .map_err(std::io::Error::other)
+    })
+    .map_err(|e| Error::io(path, e))
 }
 
 /// Read a linear float OpenEXR written by [`write_exr`].
@@ -299,6 +304,25 @@ mod tests {
                 "code {code} read as {linear}"
             );
         }
+    }
+
+    #[test]
+    fn an_image_of_the_wrong_size_is_an_error_and_no_file() {
+        // A library caller's hand-built image: 3 pixels said to be 4 × 4 (the PNG encoder
+        // asserted on it and the program panicked).
+        let image = Framebuffer {
+            width: 4,
+            height: 4,
+            pixels: vec![[0.5; 3]; 3],
+        };
+        let dir = std::env::temp_dir().join(format!("streak-size-{}", std::process::id()));
+        for name in ["short.png", "short.exr"] {
+            let path = dir.join(name);
+            let message = write_image(&image, &path).unwrap_err().to_string();
+            assert!(message.contains("holds 3 pixels, not 4 × 4"), "{message}");
+            assert!(!path.exists(), "{name} was written");
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

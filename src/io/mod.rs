@@ -4,7 +4,8 @@
 //! - [`scene_file`] and [`style_file`]: TOML scenes and styles;
 //! - [`ply`], [`obj`] and [`raw_volume`]: point clouds, meshes and volumes;
 //! - [`read`]: whole files read with a bound, gunzipped on the fly;
-//! - [`image`]: PNG and OpenEXR output.
+//! - [`image`]: PNG and OpenEXR output;
+//! - [`write`]: files written whole, with nothing partial left where writing failed.
 
 pub mod image;
 pub mod obj;
@@ -13,3 +14,4 @@ pub mod raw_volume;
 pub mod read;
 pub mod scene_file;
 pub mod style_file;
+pub mod write;

@@ -201,16 +201,11 @@ pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
                 "a mesh is written as .obj or .ply (not gzipped)",
             )
         })?;
-    let file = std::fs::File::create(path)
-        .map_err(|e| Error::input(path, "file", format!("cannot create it: {e}")))?;
-    let mut out = std::io::BufWriter::new(file);
-    let written = match format {
-        MeshFormat::Obj => write_obj(mesh, &mut out),
-        MeshFormat::Ply => write_ply_mesh(mesh, &mut out),
-    };
-    written
-        .and_then(|()| out.flush())
-        .map_err(|e| Error::input(path, "file", format!("cannot write it: {e}")))
+    super::write::write_whole(path, |out| match format {
+        MeshFormat::Obj => write_obj(mesh, out),
+        MeshFormat::Ply => write_ply_mesh(mesh, out),
+    })
+    .map_err(|e| Error::input(path, "file", format!("cannot write it: {e}")))
 }
 
 /// `v x y z` per vertex (shortest text that reads back to the same double) and `f a b c` per
