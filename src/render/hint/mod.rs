@@ -572,8 +572,11 @@ fn object_trails(
                         styled(context, ellipse, [a, b], normals, position, piece)
                     })
                     .and_then(|e| {
-                        e.footprint(camera.width, camera.height)
-                            .map_err(Cull::Raster)
+                        let mut footprint = e
+                            .footprint(camera.width, camera.height)
+                            .map_err(Cull::Raster)?;
+                        footprint.weigh_by_pixel_samples(context.style.trail.texture.as_ref());
+                        Ok(footprint)
                     })
                 }
                 _ => Err(Cull::BehindNear),
