@@ -844,6 +844,24 @@ mod tests {
     }
 
     #[test]
+    fn more_keyframes_than_the_cap_are_refused_by_count() {
+        use crate::scene::motion::MAX_KEYFRAMES;
+        let keys = |n: usize| {
+            let list: Vec<String> = (0..n)
+                .map(|i| format!("{{ t = {} }}", i as f64 / n as f64))
+                .collect();
+            format!("{MINIMAL}keyframe = [{}]\n", list.join(", "))
+        };
+        let at_cap = Scene::parse(&keys(MAX_KEYFRAMES), Path::new("s.toml"));
+        assert!(at_cap.is_ok(), "{:?}", at_cap.err());
+        let message = error_of(&keys(MAX_KEYFRAMES + 1));
+        assert!(
+            message.contains("object[0].keyframe") && message.contains("at most 10000"),
+            "{message}"
+        );
+    }
+
+    #[test]
     fn a_half_turn_between_keyframes_asks_for_more_keyframes() {
         let keys = "\n[[object.keyframe]]\nt = 0\n[[object.keyframe]]\nt = 1\nrotate = { axis = [0, 1, 0], degrees = 200 }\n";
         assert!(error_of(&format!("{MINIMAL}{keys}")).contains("add keyframes in between"));
