@@ -728,8 +728,19 @@ fn run_simplify(args: SimplifyArgs) -> Result<()> {
     })?;
     progress.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
-    write_mesh(&result.mesh, &args.output)?;
     let r = &result.repairs;
+    if result.mesh.triangles.is_empty() {
+        // A mesh of no faces is one that no reader (streak's included) takes back.
+        return Err(Error::Usage(format!(
+            "{}: no face is left once the mesh is repaired ({} of its {faces_in} faces had a \
+             repeated corner, {} repeated another): {} not written",
+            args.mesh.display(),
+            r.repeated_corners,
+            r.duplicate_faces,
+            args.output.display()
+        )));
+    }
+    write_mesh(&result.mesh, &args.output)?;
     let mut report = format!(
         "wrote {} ({faces_in} → {} faces, {} vertices, in {seconds:.3} s)\n",
         args.output.display(),

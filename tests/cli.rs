@@ -841,6 +841,20 @@ fn gallery_and_simplify_mistakes_are_explained() {
     assert!(std::fs::read_to_string(dir.join("x.obj"))
         .unwrap()
         .contains("\nf "));
+    // Nor would a mesh whose every face repairing drops (three corners at one point).
+    std::fs::write(
+        dir.join("point.obj"),
+        "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    assert_fails_with(
+        &streak(
+            &["simplify", "point.obj", "--faces", "1", "-o", "empty.obj"],
+            &dir,
+        ),
+        &["point.obj", "no face is left", "empty.obj not written"],
+    );
+    assert!(!dir.join("empty.obj").exists());
 }
 
 /// A still scene: the references at every N match the converged one exactly, and zero error
