@@ -123,6 +123,15 @@ impl std::ops::Add for Sym2 {
     }
 }
 
+/// The unit vector along `v`, or `None` for a zero or non-finite `v`. Where its squared length
+/// overflows ([10³⁰⁰, 10³⁰⁰, 0]) or vanishes ([10⁻³⁰⁰, 0, 0]), `v` is scaled by its largest
+/// component first, so that it still has a direction.
+#[must_use]
+pub fn unit_direction(v: DVec3) -> Option<DVec3> {
+    v.try_normalize()
+        .or_else(|| (v / v.abs().max_element()).try_normalize())
+}
+
 /// v vᵀ.
 #[must_use]
 pub fn outer3(v: DVec3) -> DMat3 {
@@ -356,6 +365,25 @@ pub(crate) fn test_sequence(seed: u64) -> impl FnMut() -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn directions_too_long_or_too_short_for_their_squared_length_still_have_one() {
+        let diagonal = DVec3::new(1.0, 1.0, 0.0).normalize();
+        for v in [
+            DVec3::new(1e300, 1e300, 0.0),
+            DVec3::new(1e-300, 1e-300, 0.0),
+            DVec3::new(3.0, 3.0, 0.0),
+        ] {
+            let unit = unit_direction(v).unwrap();
+            assert!((unit - diagonal).length() < 1e-15, "{v} → {unit}");
+        }
+        // An ordinary vector keeps the bits `normalize` gives it.
+        let v = DVec3::new(0.5, 0.7, 0.6);
+        assert_eq!(unit_direction(v), Some(v.normalize()));
+        for v in [DVec3::ZERO, DVec3::new(f64::INFINITY, 0.0, 0.0), DVec3::NAN] {
+            assert_eq!(unit_direction(v), None, "{v}");
+        }
+    }
 
     #[test]
     fn floor_to_i64_matches_floor_and_saturates() {

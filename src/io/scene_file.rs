@@ -611,15 +611,14 @@ fn validate_object(
             None => (None, 0.0),
             Some(r) => {
                 let axis = crate::scene::finite3("axis", DVec3::from_array(r.axis))
-                    .map_err(|e| e.in_file(path, &rotate_field))?
-                    .try_normalize()
-                    .ok_or_else(|| {
-                        Error::input(
-                            path,
-                            format!("{rotate_field}.axis"),
-                            "must not be the zero vector",
-                        )
-                    })?;
+                    .map_err(|e| e.in_file(path, &rotate_field))?;
+                let axis = crate::math::unit_direction(axis).ok_or_else(|| {
+                    Error::input(
+                        path,
+                        format!("{rotate_field}.axis"),
+                        "must not be the zero vector",
+                    )
+                })?;
                 let degrees = crate::scene::finite("degrees", r.degrees)
                     .map_err(|e| e.in_file(path, &rotate_field))?;
                 (Some(axis), degrees)

@@ -82,6 +82,14 @@ impl Camera {
         if !(forward.length() > 0.0) {
             return Err(Error::invalid("target", "must differ from camera.eye"));
         }
+        // Finite points can lie further apart than a double holds (eye at 10³⁰⁰): the viewing
+        // direction would be zero, and `up` blamed for it.
+        if !forward.length().is_finite() {
+            return Err(Error::invalid(
+                "target",
+                "lies too far from camera.eye: their distance is beyond a double's range",
+            ));
+        }
         if !(forward.normalize().cross(up).length() > 1e-9) {
             return Err(Error::invalid(
                 "up",
@@ -322,6 +330,17 @@ mod tests {
                 jac.apply(axis)
             );
         }
+    }
+
+    #[test]
+    fn an_eye_too_far_for_a_double_blames_the_distance_not_up() {
+        let far = Camera::new(DVec3::X * 1e300, DVec3::ZERO, DVec3::Y, 40.0, 64, 48);
+        let message = far.unwrap_err().to_string();
+        assert!(
+            message.starts_with("target") && message.contains("too far from camera.eye"),
+            "{message}"
+        );
+        assert!(Camera::new(DVec3::X * 1e150, DVec3::ZERO, DVec3::Y, 40.0, 64, 48).is_ok());
     }
 
     #[test]

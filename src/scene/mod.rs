@@ -38,8 +38,7 @@ impl Light {
     /// A light from `direction` (any length but zero; it is normalized) of `intensity` in
     /// [0, [`MAX_RADIANCE`]], casting no shadows. Errors name `direction` or `intensity`.
     pub fn new(direction: DVec3, intensity: f64) -> Result<Light> {
-        let direction = finite3("direction", direction)?
-            .try_normalize()
+        let direction = crate::math::unit_direction(finite3("direction", direction)?)
             .ok_or_else(|| Error::invalid("direction", "must not be the zero vector"))?;
         Ok(Light {
             direction,
@@ -93,8 +92,7 @@ impl Spot {
         shadows: bool,
     ) -> Result<Spot> {
         let position = finite3("position", position)?;
-        let direction = (finite3("target", target)? - position)
-            .try_normalize()
+        let direction = crate::math::unit_direction(finite3("target", target)? - position)
             .ok_or_else(|| Error::invalid("target", "must differ from the spot's position"))?;
         let angle = finite("angle", angle_degrees)?;
         if !(angle > 0.0 && angle <= MAX_SPOT_ANGLE_DEGREES) {

@@ -144,9 +144,7 @@ fn collinear(positions: &[DVec3]) -> bool {
     }) else {
         return true;
     };
-    // Scaled down first so that an offset whose squared length overflows still has a direction.
-    let offset = far - origin;
-    let Some(direction) = (offset / offset.abs().max_element()).try_normalize() else {
+    let Some(direction) = crate::math::unit_direction(far - origin) else {
         return true;
     };
     positions.iter().all(|&p| {

@@ -291,9 +291,11 @@ struct Sampler {
 }
 
 impl Sampler {
-    /// Whether `count` more surfels fit; remembers when they do not.
+    /// Whether `count` more surfels fit; remembers when they do not, and from then on nothing
+    /// fits: the object is refused, and the parts after the one that did not fit (a cylinder's
+    /// caps after its side) must not spend the budget on surfels that are thrown away.
     fn reserve(&mut self, count: usize) -> bool {
-        let fits = self.budget.fits(self.surfels.len().saturating_add(count));
+        let fits = !self.over_budget && self.budget.fits(self.surfels.len().saturating_add(count));
         self.over_budget |= !fits;
         fits
     }
@@ -346,6 +348,13 @@ fn sample_quad(centre: DVec3, span_a: DVec3, span_b: DVec3, spacing: f64, out: &
 
 /// A disc of `radius` at `centre` facing `normal`, in concentric rings of near-square cells.
 fn sample_disc(centre: DVec3, normal: DVec3, radius: f64, spacing: f64, out: &mut Sampler) {
+    // The rings hold at least π (radius / spacing)² cells, each ring's count being rounded up:
+    // refused at once when those do not fit, rather than ring by ring until the budget is spent.
+    if !out.reserve(cell_count(
+        std::f64::consts::PI * (radius / spacing).powi(2),
+    )) {
+        return;
+    }
     let (e1, e2) = normal.any_orthonormal_pair();
     let rings = cell_count(radius / spacing);
     let dr = radius / rings as f64;
@@ -448,6 +457,28 @@ mod tests {
 
     fn total_area(s: &[Surfel]) -> f64 {
         s.iter().map(|s| s.area).sum()
+    }
+
+    #[test]
+    fn nothing_is_sampled_once_the_budget_has_refused_a_part() {
+        let mut out = Sampler {
+            surfels: Vec::new(),
+            budget: Budget::new(1000).unwrap(),
+            over_budget: false,
+        };
+        // A disc of about 31,400 cells: refused before its first ring (it was sampled ring by
+        // ring until a ring no longer fitted, 1,000 surfels made for nothing).
+        sample_disc(DVec3::ZERO, DVec3::Z, 100.0, 1.0, &mut out);
+        assert!(
+            out.over_budget && out.surfels.is_empty(),
+            "{}",
+            out.surfels.len()
+        );
+        // What would fit on its own after a refusal is refused too (a cylinder's caps after its
+        // side).
+        assert!(!out.reserve(1));
+        sample_disc(DVec3::ZERO, DVec3::Z, 1.0, 1.0, &mut out);
+        assert!(out.surfels.is_empty());
     }
 
     #[test]
