@@ -344,13 +344,14 @@ impl ScreenSplat {
 /// A disc, ring or texture footprint narrower than this (its minor standard deviation, px) is
 /// weighed by its own pixel samples. Below it their hard-edged shapes are too coarse for the
 /// pixel grid: the samples of a ring at the narrowest footprint sum to 0.75–1.25 of its weight as
-/// its centre moves within a pixel, of a disc 0.88–1.17; at 2 px both stay within 1 % (the
-/// Gaussian within 2 % at any width: [`PREFILTER_VARIANCE_PX2`]).
+/// its centre moves within a pixel, of a disc 0.92–1.17 (0.88–1.11 at 0.75 px); at 2 px both
+/// stay within 1 % (the Gaussian within 2 % at any width: [`PREFILTER_VARIANCE_PX2`]).
 const PIXEL_WEIGHED_BELOW_SIGMA_PX: f64 = 2.0;
 
-/// ... and whose cut-off ellipse's bounding box holds at most this many pixels: a larger box
-/// around so narrow an ellipse belongs to a long one across the pixel grid's axes, whose rows
-/// sample every offset and average out. It bounds the work, a few thousand samples.
+/// A narrow footprint is weighed by its samples only where its cut-off ellipse's bounding box
+/// holds at most this many pixels: a larger box around so narrow an ellipse belongs to a long one
+/// across the pixel grid's axes, whose rows sample every offset and average out. It bounds the
+/// work, a few thousand samples.
 const PIXEL_WEIGHED_MAX_BOX_PX: f64 = 4096.0;
 
 impl Footprint {

@@ -53,7 +53,7 @@ pub const TURN_EPSILON: f64 = 1e-6;
 
 /// Most keyframes one object may have. The plan measures the motion over every interval between
 /// keyframes, and each interval may be cut into sub-segments and drawn: 10,000 keyframes of a
-/// 12-triangle cube take 0.6 s to plan and draw with `static` at 64 × 48, 100,000 took 5.8 s.
+/// 12-triangle cube take 0.53 s to plan and draw with `static` at 64 × 48, 100,000 took 5.8 s.
 pub const MAX_KEYFRAMES: usize = 10_000;
 
 /// A pose at a normalized frame time.

@@ -206,7 +206,8 @@ pub(crate) fn faces_around(vertices: usize, triangles: &[[u32; 3]]) -> (Vec<usiz
 
 /// Around a vertex with more faces than this, the crease test is made once per distinct face
 /// normal rather than once per pair of faces: the pairs grow as the square of the faces, and one
-/// polygon of a million corners in a 3 KB file made a vertex with a million faces around it.
+/// polygon of 900,000 corners in a 2.7 KB `.obj.gz` put 300,000 faces around each of its three
+/// vertices.
 const GROUPED_ABOVE_VALENCE: usize = 64;
 
 /// At most this many groups of normals around one vertex: with more distinct normals, the faces
