@@ -356,8 +356,8 @@ const PIXEL_WEIGHED_MAX_BOX_PX: f64 = 4096.0;
 
 impl Footprint {
     /// Make a narrow disc, ring or texture footprint's samples at pixel centres sum to its weight
-    /// (as [`PIXEL_WEIGHED_BELOW_SIGMA_PX`] says which), so that its coverage and light do not
-    /// jump with where its centre falls within a pixel. Every pixel of its ellipse counts, also
+    /// (below 2 px of minor standard deviation, within a bounding box of 4,096 pixels), so that
+    /// its coverage and light do not jump with where its centre falls within a pixel. Every pixel of its ellipse counts, also
     /// those beyond the image, so a footprint at the edge is weighed as one inside. `texture` is
     /// the image a texture profile maps. Gaussians, streaks and footprints with no sample inside
     /// are left as they are.
