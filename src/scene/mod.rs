@@ -80,10 +80,14 @@ pub const SPOT_EDGE: f64 = 0.15;
 /// Widest spot half-angle, degrees: its shadow map is a perspective view of twice that.
 pub const MAX_SPOT_ANGLE_DEGREES: f64 = 80.0;
 
+/// Narrowest spot half-angle, degrees: half the narrowest field of view a camera takes, so that
+/// its shadow map's view can be made (a spot of 10⁻⁵° was refused there, naming only `lighting`).
+pub const MIN_SPOT_ANGLE_DEGREES: f64 = camera::MIN_FOV_Y_DEGREES / 2.0;
+
 impl Spot {
     /// A spot at `position` aimed at `target` with half-angle `angle_degrees` in
-    /// (0, [`MAX_SPOT_ANGLE_DEGREES`]] and `intensity` in [0, [`MAX_RADIANCE`]]. Errors name the
-    /// field.
+    /// [[`MIN_SPOT_ANGLE_DEGREES`], [`MAX_SPOT_ANGLE_DEGREES`]] and `intensity` in
+    /// [0, [`MAX_RADIANCE`]]. Errors name the field.
     pub fn new(
         position: DVec3,
         target: DVec3,
@@ -95,10 +99,10 @@ impl Spot {
         let direction = crate::math::unit_direction(finite3("target", target)? - position)
             .ok_or_else(|| Error::invalid("target", "must differ from the spot's position"))?;
         let angle = finite("angle", angle_degrees)?;
-        if !(angle > 0.0 && angle <= MAX_SPOT_ANGLE_DEGREES) {
+        if !(MIN_SPOT_ANGLE_DEGREES..=MAX_SPOT_ANGLE_DEGREES).contains(&angle) {
             return Err(Error::invalid(
                 "angle",
-                format!("{angle}: the cone's half-angle is in degrees, above 0 and at most {MAX_SPOT_ANGLE_DEGREES}"),
+                format!("{angle}: the cone's half-angle is in degrees, at least {MIN_SPOT_ANGLE_DEGREES} and at most {MAX_SPOT_ANGLE_DEGREES}"),
             ));
         }
         Ok(Spot {
@@ -598,6 +602,14 @@ mod tests {
         );
         let message = Light::new(DVec3::ZERO, 1.0).unwrap_err().to_string();
         assert!(message.starts_with("direction: "), "{message}");
+        // A spot narrower than its shadow map's camera can see is refused by its angle.
+        let spot = |angle| Spot::new(DVec3::Y * 3.0, DVec3::ZERO, angle, 1.0, true);
+        let message = spot(1e-5).unwrap_err().to_string();
+        assert!(
+            message.starts_with("angle: ") && message.contains("at least 0.0005"),
+            "{message}"
+        );
+        assert!(spot(MIN_SPOT_ANGLE_DEGREES).is_ok());
         let message = Light::new(DVec3::new(f64::NAN, 0.0, 1.0), 1.0)
             .unwrap_err()
             .to_string();
