@@ -5,7 +5,7 @@
 //! - [`ply`], [`obj`] and [`raw_volume`]: point clouds, meshes and volumes;
 //! - [`read`]: whole files read with a bound, gunzipped on the fly;
 //! - [`image`]: PNG and OpenEXR output;
-//! - [`write`]: files written whole, with nothing partial left where writing failed.
+//! - [`write`](mod@write): files written whole, with nothing partial left where writing failed.
 
 pub mod image;
 pub mod obj;
