@@ -357,10 +357,11 @@ const PIXEL_WEIGHED_MAX_BOX_PX: f64 = 4096.0;
 impl Footprint {
     /// Make a narrow disc, ring or texture footprint's samples at pixel centres sum to its weight
     /// (below 2 px of minor standard deviation, within a bounding box of 4,096 pixels), so that
-    /// its coverage and light do not jump with where its centre falls within a pixel. Every pixel of its ellipse counts, also
-    /// those beyond the image, so a footprint at the edge is weighed as one inside. `texture` is
-    /// the image a texture profile maps. Gaussians, streaks and footprints with no sample inside
-    /// are left as they are.
+    /// its coverage and light do not jump with where its centre falls within a pixel. Every pixel
+    /// of its ellipse counts, also those beyond the image, so a footprint at the edge is weighed
+    /// as one inside; each is valued as the rasterizer values it. `texture` is the image a
+    /// texture profile maps. Gaussians, streaks and footprints with no sample inside are left as
+    /// they are.
     pub fn weigh_by_pixel_samples(&mut self, texture: Option<&Texture>) {
         if self.profile == Profile::Gaussian || self.streak.is_some() {
             return;
@@ -380,24 +381,21 @@ impl Footprint {
         if !((2.0 * half[0] + 2.0) * (rows[1] - rows[0] + 1.0) <= PIXEL_WEIGHED_MAX_BOX_PX) {
             return;
         }
-        let sampler = Sampler::new(self.profile, self.conic, self.time_gradient, texture);
+        let shape = Ellipse::new(self, texture);
         let mut sum = 0.0;
         for y in (rows[0] as i64)..=(rows[1] as i64) {
             let dy = y as f64 + 0.5 - cy;
-            // The row's offsets inside: a·dx² + 2b·dy·dx + c·dy² ≤ cut-off.
+            // The row's offsets inside, a·dx² + 2b·dy·dx + c·dy² ≤ cut-off, a pixel wider each way
+            // (the shape's value is zero beyond the cut-off).
             let discriminant = b * b * dy * dy - a * (c * dy * dy - cutoff);
             if !(discriminant >= 0.0) {
                 continue;
             }
             let reach = discriminant.sqrt() / a;
             let middle = cx - 0.5 - b * dy / a;
+            let row = shape.row(dy as f32);
             for x in ((middle - reach).floor() as i64)..=((middle + reach).ceil() as i64) {
-                let [dx, dy] = [(x as f64 + 0.5 - cx) as f32, dy as f32];
-                let [qa, qb, qc] = self.conic;
-                let q = qa * dx * dx + 2.0 * qb * dx * dy + qc * dy * dy;
-                if q <= CUTOFF_Q {
-                    sum += f64::from(sampler.value([dx, dy], q));
-                }
+                sum += f64::from(shape.value(row, (x as f64 + 0.5 - cx) as f32).0);
             }
         }
         // The continuous footprint holds amplitude · integral · √det Σ, its weight.

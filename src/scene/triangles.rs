@@ -242,13 +242,10 @@ fn corner_normals(
         .map(|(f, t)| {
             t.map(|v| {
                 let around = around(v);
-                if let Some(normals) = (around.len() > GROUPED_ABOVE_VALENCE)
-                    .then(|| grouped.get(&v))
-                    .flatten()
-                {
+                if around.len() > GROUPED_ABOVE_VALENCE {
                     // `around` is in face order and holds f (once per corner f has at v).
                     let at = around.partition_point(|&g| (g as usize) < f);
-                    return normals[at];
+                    return grouped[&v][at];
                 }
                 let sum: DVec3 = around
                     .iter()
