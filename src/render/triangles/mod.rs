@@ -29,7 +29,7 @@ use crate::scene::{
 };
 use intervals::{resolve, AsIs, BentDepth, Interval, ResolveScratch};
 pub use shadow::MAX_SHADOWED_LIGHTS;
-use shadow::{cap_within, Casters, Occluder, Occluders, Receiver, ShadowMap};
+use shadow::{cap_within, Casters, Occluder, Occluders, Receiver, ShadowMap, TEXEL_RECORD_BYTES};
 pub use shadow::{ShadowLists, MAX_SHADOW_PIECES};
 use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth, RayHit};
 
@@ -232,16 +232,17 @@ impl TriangleStats {
             ));
             let lists = &self.shadow_lists;
             out.push_str(&format!(
-                "  shadow-map texels: {} occluder pieces held ({:.1} MiB), at most {} on one texel; {} texel lists compressed, {} intervals dropped from full ones\n",
+                "  shadow-map texels: {} occluder pieces and {} texel records held ({:.1} MiB), at most {} pieces on one texel; {} texel lists compressed, {} intervals dropped from full ones\n",
                 lists.pieces,
-                (lists.pieces * std::mem::size_of::<Occluder>()) as f64 / f64::from(1 << 20),
+                lists.records,
+                (lists.pieces * std::mem::size_of::<Occluder>() + lists.records * TEXEL_RECORD_BYTES) as f64 / f64::from(1 << 20),
                 lists.peak_per_texel,
                 lists.compressed,
                 lists.dropped
             ));
             if let Some((asked, drawn)) = lists.coarsened {
                 out.push_str(&format!(
-                    "  shadow-map budget ({MAX_SHADOW_PIECES} pieces over a render's maps) spent at {asked}² texels: drawn at {drawn}² (shadows of the same strength, softer edges)\n"
+                    "  shadow-map budget ({MAX_SHADOW_PIECES} pieces and texel records over a render's maps) spent at {asked}² texels: drawn at {drawn}² (shadows of the same strength, softer edges)\n"
                 ));
             }
             if let Some(cap) = lists.cap {
@@ -1643,8 +1644,8 @@ impl<'a> Prepared<'a> {
     }
 
     /// The occluders of every texel, seen from this (a light's) camera with one sample per texel,
-    /// at most `budget` pieces (or one per texel, where there are more texels); `None` when they
-    /// do not fit and `cut` is false. Tiles are built in parallel, each keeping its lists while
+    /// within `budget` ([`ShadowTile::held`]: pieces plus the texel records of tiles that hold
+    /// any); `None` when they do not fit and `cut` is false. Tiles are built in parallel, each keeping its lists while
     /// the pieces held so far fit; once they would not, the rest are only counted, and at the end,
     /// if the map did not fit, every texel's list is cut to its longest pieces, as many as fit
     /// ([`cap_within`]), the tiles that were only counted built again. Which tiles were held
@@ -1654,7 +1655,6 @@ impl<'a> Prepared<'a> {
     fn occluders_within(&self, budget: usize, cut: bool) -> Option<Occluders> {
         let camera = &self.camera;
         let grid = TileGrid::new(camera.width, camera.height);
-        let budget = budget.max((camera.width * camera.height) as usize);
         let lists = self.tile_lists(&grid);
         let offsets = camera.sample_offsets();
         let pool = ScratchPool::default();
@@ -1719,8 +1719,8 @@ impl<'a> Prepared<'a> {
                     return ShadowTile::default();
                 }
                 let mut built = build(tile);
-                let pieces = built.pieces.len();
-                if held.fetch_add(pieces, Ordering::Relaxed) + pieces > budget {
+                let cost = built.held();
+                if held.fetch_add(cost, Ordering::Relaxed) + cost > budget {
                     built.pieces = Vec::new();
                     built.counted_only = true;
                 }
@@ -1738,13 +1738,15 @@ impl<'a> Prepared<'a> {
         };
         let mut lists_stats = ShadowLists {
             pieces: counts().sum(),
+            records: tiles.iter().map(|t| t.starts.len()).sum(),
             peak_per_texel: counts().max().unwrap_or(0),
             compressed: tiles.iter().map(|t| t.compressed).sum(),
             dropped: tiles.iter().map(|t| t.dropped).sum(),
             ..ShadowLists::default()
         };
-        if lists_stats.pieces > budget {
-            let cap = cap_within(counts(), budget);
+        if lists_stats.pieces + lists_stats.records > budget {
+            // Cut only at the coarsest map, whose records are a few hundred.
+            let cap = cap_within(counts(), budget.saturating_sub(lists_stats.records));
             tiles
                 .par_iter_mut()
                 .enumerate()
@@ -2396,6 +2398,14 @@ struct ShadowTile {
 }
 
 impl ShadowTile {
+    /// What the tile holds against its map's budget, in pieces: its pieces (counted, if let go)
+    /// and one for each texel record (a list start and, over a shutter, a nearest-occluder
+    /// record: 20 bytes, less than a piece's 48), so that a map of many texels cannot pass the
+    /// budget one piece a texel.
+    fn held(&self) -> usize {
+        self.starts.last().map_or(0, |&end| end as usize) + self.starts.len()
+    }
+
     /// Keep each texel's `cap` longest pieces, in their order.
     fn keep_longest(&mut self, cap: usize) {
         let mut longest_first = Vec::new();
@@ -2525,9 +2535,9 @@ mod tests {
             whole.left_empty,
             whole.left_out
         );
-        let budget = 2 * texels;
+        let budget = 2 * texels + whole.lists.records;
         let counts: Vec<usize> = texel_lists(&whole).iter().map(Vec::len).collect();
-        let cap = cap_within(counts.iter().copied(), budget);
+        let cap = cap_within(counts.iter().copied(), 2 * texels);
         let kept: usize = counts.iter().map(|&c| c.min(cap)).sum();
         let cut_with = |threads: usize| {
             rayon::ThreadPoolBuilder::new()
@@ -2538,7 +2548,7 @@ mod tests {
         };
         let cut = cut_with(1);
         assert_eq!(cut.lists.cap, Some(cap));
-        assert!(cap > 1 && kept <= budget);
+        assert!(cap > 1 && kept <= 2 * texels);
         assert_eq!(cut.lists.pieces, kept);
         assert_eq!(cut.lists.cut, whole.lists.pieces - kept);
         // Each texel's list is its `cap` longest pieces, in time order.
@@ -2597,23 +2607,41 @@ mod tests {
         let scene = zigzag_over_floor(64, 20);
         let plan = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Off).unwrap();
         let camera = &plan.shadow_cameras[0];
-        let pieces = |side: u32| {
+        let lists = |side: u32| {
             let camera = camera.resized(side, side).unwrap();
             let whole = prepared_light(&plan, camera).occluders_within(usize::MAX, false);
-            whole.unwrap().lists.pieces
+            whole.unwrap().lists
         };
-        let budget = pieces(32).max(32 * 32);
-        assert!(pieces(64) > budget, "{} {budget}", pieces(64));
+        let held = |side: u32| lists(side).pieces + lists(side).records;
+        let budget = held(32);
+        assert!(held(64) > budget, "{} {budget}", held(64));
         let occluders = shadow_occluders(&plan, camera, Exposure::Shutter, budget);
         assert_eq!(occluders.camera.width, 32);
         assert_eq!(occluders.lists.coarsened, Some((64, 32)));
         assert_eq!(
             (occluders.lists.pieces, occluders.lists.cap),
-            (pieces(32), None)
+            (lists(32).pieces, None)
         );
         // With room for the whole map, it is drawn as asked.
-        let whole = shadow_occluders(&plan, camera, Exposure::Shutter, pieces(64));
+        let whole = shadow_occluders(&plan, camera, Exposure::Shutter, held(64));
         assert_eq!((whole.camera.width, whole.lists.coarsened), (64, None));
+    }
+
+    #[test]
+    fn a_shadow_map_of_more_texels_than_its_budget_is_drawn_coarser_too() {
+        // One pass of the square: fewer pieces than the 64² map has texels, but not fewer than
+        // its pieces and texel records together. Such a map once held one piece a texel past its
+        // budget (eight lights' 4096² maps over a floor: 85.6 M pieces, 5.2 GB).
+        let scene = zigzag_over_floor(64, 1);
+        let plan = Plan::with_lod(&scene, &Method::ANALYTIC, Lod::Off).unwrap();
+        let camera = &plan.shadow_cameras[0];
+        let whole = shadow_occluders(&plan, camera, Exposure::Shutter, usize::MAX).lists;
+        assert!(whole.pieces < 64 * 64 && whole.records > 0, "{whole:?}");
+        let budget = whole.pieces;
+        let fitted = shadow_occluders(&plan, camera, Exposure::Shutter, budget);
+        assert!(fitted.camera.width < 64, "{:?}", fitted.lists);
+        assert_eq!(fitted.lists.cap, None);
+        assert!(fitted.lists.pieces + fitted.lists.records <= budget);
     }
 
     #[test]

@@ -50,15 +50,22 @@ pub const MAX_RECEIVER_SAMPLES: usize = 256;
 pub const MAX_SHADOWED_LIGHTS: usize = 8;
 
 /// Most occluder pieces the shadow maps of one render hold together (48 bytes each: 384 MiB),
-/// shared evenly between the maps; a map with more texels than its share may hold one per
-/// texel. A cube zig-zagging 150 times over a floor in one exposure put 256 pieces (as many as a
+/// shared evenly between the maps, where each texel record of a tile that holds occluders (its
+/// list start and nearest-occluder summary, 20 bytes) counts as one piece. A map of more texels
+/// than its share is drawn coarser like any other: eight shadowed lights with 4096² maps over a
+/// floor of 3,200 triangles once held 85.6 M pieces (5.2 GB at peak), one per texel past their
+/// shares. A cube zig-zagging 150 times over a floor in one exposure put 256 pieces (as many as a
 /// texel then kept) on each texel under its path, 1 GB in a 1024² map (and a 4096² map could
 /// have asked sixteen times that). A map whose lists would hold more than its share is drawn
 /// again with half the texels per side, as often as it takes: its shadows keep their strength
 /// and soften. Only where even a map of [`crate::scene::MIN_SHADOW_MAP`] texels would not fit is
-/// each texel's list cut to its longest pieces, as many as fit (`cap_within`). `--explain` says
-/// which. The gallery's scenes hold at most 1.2 M (`armadillo_shadow`).
+/// each texel's list cut to its longest pieces, as many as fit (`cap_within`), at least one each
+/// (at most 8 × 16² more pieces). `--explain` says which. The gallery's scenes hold at most 1.2 M (`armadillo_shadow`).
 pub const MAX_SHADOW_PIECES: usize = 1 << 23;
+
+/// Bytes of one texel record: its list start and its nearest-occluder summary.
+pub(super) const TEXEL_RECORD_BYTES: usize =
+    std::mem::size_of::<u32>() + std::mem::size_of::<Nearest>();
 
 /// Longest path, in texels, that [`ShadowMap::surely_lit`] walks (about three texels per texel of
 /// path are read; a longer path is point-sampled or traced).
@@ -302,6 +309,9 @@ impl Nearest {
 pub struct ShadowLists {
     /// Occluder pieces held.
     pub pieces: usize,
+    /// Texel records held (a list start each, and a nearest-occluder summary over a shutter), in
+    /// the tiles that hold occluders; each counts as a piece against [`MAX_SHADOW_PIECES`].
+    pub records: usize,
     /// The most on one texel.
     pub peak_per_texel: usize,
     /// Times a texel's interval list was full ([`super::MAX_INTERVALS_PER_SAMPLE`]) and was
@@ -323,6 +333,7 @@ impl ShadowLists {
     /// Add another map's counts (each light's, each frame's); the tightest cap stands for them.
     pub fn add(&mut self, other: &ShadowLists) {
         self.pieces += other.pieces;
+        self.records += other.records;
         self.peak_per_texel = self.peak_per_texel.max(other.peak_per_texel);
         self.compressed += other.compressed;
         self.dropped += other.dropped;
