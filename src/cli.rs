@@ -639,6 +639,18 @@ fn run_compare(args: CompareArgs) -> Result<()> {
     }
     let test = output::read_image(&args.test)?;
     let reference = output::read_image(&args.reference)?;
+    if (test.width, test.height) != (reference.width, reference.height) {
+        return Err(Error::Usage(format!(
+            "{} is {}×{} but {} is {}×{}: compare images of one size (render both with the same \
+             --width and --height)",
+            args.test.display(),
+            test.width,
+            test.height,
+            args.reference.display(),
+            reference.width,
+            reference.height
+        )));
+    }
     let error = metrics::compare(&test, &reference)?;
     let mut difference = metrics::difference_image(&test, &reference)?;
     let found = metrics::Differences::of(&difference);

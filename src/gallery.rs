@@ -128,7 +128,7 @@ pub fn images_per_scene(options: &GalleryOptions) -> usize {
 /// image.
 pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<Vec<SceneShots>> {
     crate::style::check_distinct_names(&options.styles)?;
-    std::fs::create_dir_all(&options.out_dir).map_err(|e| Error::io(&options.out_dir, e))?;
+    crate::io::write::output_folder(&options.out_dir)?;
     let mut rows = Vec::new();
     for path in &options.scenes {
         let mut scene = Scene::load_within(path, options.budget)?;

@@ -334,7 +334,7 @@ pub fn run(
         )));
     }
     crate::style::check_distinct_names(&options.styles)?;
-    std::fs::create_dir_all(&options.out_dir).map_err(|e| Error::io(&options.out_dir, e))?;
+    crate::io::write::output_folder(&options.out_dir)?;
     let reference = converged_reference(
         scene,
         options.reference_samples,

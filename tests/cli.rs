@@ -709,7 +709,10 @@ fn compare_reports_the_error_and_where_it_is_largest() {
 
     write_exr(&Framebuffer::filled(4, 4, [0.5; 3]), &dir.join("small.exr")).unwrap();
     let mismatch = streak(&["compare", "small.exr", "reference.exr"], &dir);
-    assert_fails_with(&mismatch, &["the sizes must match"]);
+    assert_fails_with(
+        &mismatch,
+        &["small.exr is 4×4 but reference.exr is 8×4", "same --width"],
+    );
 
     // A 65-byte PNG whose header claims 100,000 × 100,000 pixels (30 GB as RGB floats) is refused
     // from its header.
@@ -883,4 +886,11 @@ fn a_study_says_which_points_its_plot_leaves_out() {
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("points are not plotted"), "{stderr}");
     assert!(dir.join("out/study.svg").exists());
+
+    // An output folder named where a file is: said so, not "File exists".
+    std::fs::write(dir.join("taken"), "").unwrap();
+    assert_fails_with(
+        &streak(&["study", "scene.toml", "-o", "taken"], &dir),
+        &["-o taken: a file of that name is there; name a folder"],
+    );
 }

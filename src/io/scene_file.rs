@@ -478,8 +478,29 @@ pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path
             .span()
             .map(|s| text[..s.start].matches('\n').count() + 1)
             .unwrap_or(0);
-        Error::input(path, format!("line {line}"), e.message().trim_end())
+        Error::input(
+            path,
+            format!("line {line}"),
+            numbers_shortened(e.message().trim_end()),
+        )
     })
+}
+
+/// `message` with each number quoted in backticks that runs past 24 characters (the TOML
+/// reader prints a float given for an integer with all its digits: 10³⁰⁰ as 301 of them) shown
+/// as [`crate::error::shown`] shows numbers.
+fn numbers_shortened(message: &str) -> String {
+    let mut parts = message.split('`');
+    let mut out = parts.next().unwrap_or_default().to_string();
+    for (k, part) in parts.enumerate() {
+        out.push('`');
+        // Odd parts lie between backticks.
+        match part.parse::<f64>() {
+            Ok(value) if k % 2 == 0 && part.len() > 24 => out += &crate::error::shown(value),
+            _ => out += part,
+        }
+    }
+    out
 }
 
 fn validate(spec: SceneSpec, path: &Path, mut budget: Budget) -> Result<Scene> {
@@ -801,6 +822,18 @@ mod tests {
     }
 
     #[test]
+    fn a_huge_float_for_an_integer_is_shown_short() {
+        let message = error_of(&MINIMAL.replace("width = 64", "width = 1e300"));
+        assert!(
+            message.contains("line 6") && message.contains("`1e300`, expected u32"),
+            "{message}"
+        );
+        // Short numbers and other quoted words are left as the reader wrote them.
+        let message = error_of(&MINIMAL.replace("width = 64", "width = 64.5"));
+        assert!(message.contains("`64.5`"), "{message}");
+    }
+
+    #[test]
     fn non_finite_numbers_are_rejected_by_field() {
         let message = error_of(&MINIMAL.replace("radius = 1.0", "radius = nan"));
         assert!(message.contains("object[0].shape.radius"), "{message}");
@@ -933,7 +966,7 @@ mod tests {
         }
         let message = error(&mesh_shape("flat.obj", 10, None));
         assert!(
-            message.contains("flat.obj: faces: all 1 triangles are degenerate"),
+            message.contains("flat.obj: faces: none of the 1 triangles has a surface to draw or sample: 1 of zero area"),
             "{message}"
         );
         let message = error(&mesh_shape("box.stl", 10, None));

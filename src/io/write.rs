@@ -28,6 +28,18 @@ pub fn write_whole(
     written
 }
 
+/// Make the folder `dir` (and its missing parents) for a command's outputs. A file already
+/// there under that name is refused by saying so, where the system would only say "File exists".
+pub fn output_folder(dir: &Path) -> crate::error::Result<()> {
+    if std::fs::metadata(dir).is_ok_and(|metadata| !metadata.is_dir()) {
+        return Err(crate::error::Error::Usage(format!(
+            "-o {}: a file of that name is there; name a folder for the outputs (made if missing)",
+            dir.display()
+        )));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

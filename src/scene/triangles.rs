@@ -65,14 +65,7 @@ impl TriangleMesh {
             }
         }
         if triangles.is_empty() {
-            return Err(Error::invalid(
-                "faces",
-                format!(
-                    "all {} triangles are degenerate (zero area) or index past the vertices: \
-                     there is nothing to draw",
-                    mesh.triangles.len()
-                ),
-            ));
+            return Err(mesh.no_faces_left());
         }
         let normals = corner_normals(positions.len(), &triangles, &face_normals);
         let mut vertex_normals = vec![DVec3::ZERO; positions.len()];
@@ -465,5 +458,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(message.starts_with("faces: "), "{message}");
+        assert!(message.ends_with("1 of zero area"), "{message}");
+    }
+
+    #[test]
+    fn a_mesh_too_large_for_its_areas_is_told_to_be_scaled_down() {
+        // Its area, 5·10⁵⁹⁹, overflows a double: not "zero area", as it was once called.
+        let mesh = Mesh {
+            positions: vec![DVec3::ZERO, DVec3::X * 1e300, DVec3::Y * 1e300, DVec3::X],
+            triangles: vec![[0, 1, 2], [0, 1, 7]],
+        };
+        let expected = "faces: none of the 2 triangles has a surface to draw or sample: 1 \
+                        indexing past the 4 vertices, 1 too large for their area to be a double \
+                        (coordinates up to 1e300: scale the model down)";
+        let drawn = TriangleMesh::new(&mesh, DVec3::ZERO, Colouring::Own).unwrap_err();
+        assert_eq!(drawn.to_string(), expected);
+        let sampled = crate::surfels::from_mesh(&mesh, 100, false).unwrap_err();
+        assert_eq!(sampled.to_string(), expected);
     }
 }

@@ -128,6 +128,53 @@ impl Mesh {
         Some([corner(t[0])?, corner(t[1])?, corner(t[2])?])
     }
 
+    /// The error for a mesh none of whose triangles can be drawn or sampled, naming `faces` and
+    /// why: zero areas, areas too large for a double (coordinates near 10¹⁵⁴ and beyond: the
+    /// model is to be scaled down), or indices past the vertices.
+    #[must_use]
+    pub fn no_faces_left(&self) -> Error {
+        let (mut overflowing, mut outside) = (0, 0);
+        let mut largest = 0.0f64;
+        for &t in &self.triangles {
+            match self.corners(t) {
+                Some([a, b, c]) => {
+                    if !(b - a).cross(c - a).length().is_finite() {
+                        overflowing += 1;
+                        largest = [a, b, c]
+                            .iter()
+                            .fold(largest, |m, p| m.max(p.abs().max_element()));
+                    }
+                }
+                None => outside += 1,
+            }
+        }
+        let total = self.triangles.len();
+        let mut why = Vec::new();
+        if total > overflowing + outside {
+            why.push(format!("{} of zero area", total - overflowing - outside));
+        }
+        if outside > 0 {
+            why.push(format!(
+                "{outside} indexing past the {} vertices",
+                self.positions.len()
+            ));
+        }
+        if overflowing > 0 {
+            why.push(format!(
+                "{overflowing} too large for their area to be a double (coordinates up to {}: \
+                 scale the model down)",
+                crate::error::shown(largest)
+            ));
+        }
+        Error::invalid(
+            "faces",
+            format!(
+                "none of the {total} triangles has a surface to draw or sample: {}",
+                why.join(", ")
+            ),
+        )
+    }
+
     /// The smallest box around the vertices the triangles use, as (lowest, highest) corner;
     /// `None` when no triangle has valid indices.
     #[must_use]
@@ -224,7 +271,7 @@ impl Mesh {
 /// Surfels sampled from `mesh`'s surface (see the module notes), light grey, `samples` of them:
 /// moved so that the centre of the mesh's bounding box is the origin when `centre` is true. An
 /// error names `samples` (0 or more than [`MAX_SURFEL_BUDGET`]) or `faces` (every triangle
-/// degenerate: no surface to sample).
+/// degenerate, or too large: [`Mesh::no_faces_left`]).
 pub fn from_mesh(mesh: &Mesh, samples: usize, centre: bool) -> Result<Vec<Surfel>> {
     if !(1..=MAX_SURFEL_BUDGET).contains(&samples) {
         return Err(Error::invalid(
@@ -234,13 +281,7 @@ pub fn from_mesh(mesh: &Mesh, samples: usize, centre: bool) -> Result<Vec<Surfel
     }
     let mut sampled = mesh.sample(samples);
     if sampled.surfels.is_empty() {
-        return Err(Error::invalid(
-            "faces",
-            format!(
-                "all {} triangles are degenerate (zero area): there is no surface to sample",
-                mesh.triangles.len()
-            ),
-        ));
+        return Err(mesh.no_faces_left());
     }
     let offset = match (centre, mesh.bounds()) {
         (true, Some((lo, hi))) => 0.5 * (lo + hi),
