@@ -284,9 +284,14 @@ impl ScreenSplat {
         // Finite in the f32 they are packed into: a depth of 10³⁹ (a scene scaled by 10³⁸) is
         // finite in f64 but infinite there, where the depth test's ∞ − ∞ is NaN. The covering
         // time's gradient (1/chord for a motion ellipse) may overflow: the time is clamped to
-        // the span.
+        // the span. The conic's diagonal must be a normal f32: a footprint wider than about 10¹⁸
+        // px (a surfel scaled by 10¹⁹ in front of the camera) has one below it, where its rows
+        // lose their precision and the footprint its pixels.
         let packs = |v: f64| (v as f32).is_finite();
+        let normal = |v: f64| (v as f32) >= f32::MIN_POSITIVE;
         if !(amplitude > 1e-12
+            && normal(conic.xx)
+            && normal(conic.yy)
             && self.time.gradient.is_finite()
             && [
                 amplitude,
@@ -580,7 +585,16 @@ impl RowSpans {
     fn new(f: &Footprint) -> RowSpans {
         let [a, b, c] = f.conic;
         let (shear, reach, narrowing) = if a > 0.0 {
-            (b / a, CUTOFF_Q / a, (a * c - b * b) / (a * a))
+            let shear = b / a;
+            // (ac − b²)/a²; where a² is below f32's normal range (a footprint wider than about
+            // 10⁹ px, a surfel scaled past 10¹¹ in front of the camera), as c/a − (b/a)², which
+            // does not underflow to 0/0 and lose the whole footprint.
+            let narrowing = if a * a >= f32::MIN_POSITIVE {
+                (a * c - b * b) / (a * a)
+            } else {
+                c / a - shear * shear
+            };
+            (shear, CUTOFF_Q / a, narrowing)
         } else {
             (0.0, -1.0, 0.0)
         };
@@ -1239,6 +1253,32 @@ mod tests {
             (p[0] - 0.25).abs() < 1e-3 && (p[2] - 0.75).abs() < 1e-3,
             "{p:?}"
         );
+    }
+
+    #[test]
+    fn a_footprint_a_trillion_pixels_wide_still_covers_the_image_and_past_f32_is_rejected() {
+        // σ = 10¹² px: the conic's a² (10⁻⁴⁸) underflows f32, where the rows' narrowing once
+        // became 0/0 and the footprint lost every pixel (a surfel scaled by 10¹² in front of the
+        // camera).
+        let wide = |variance: f64| {
+            gaussian(
+                DVec2::new(32.0, 32.0),
+                Sym2::isotropic(variance),
+                0.25 * std::f64::consts::TAU * variance / TRUNCATION_GAIN,
+                [1.0, 0.0, 0.0],
+                1.0,
+            )
+            .footprint(64, 64)
+        };
+        let image = draw(&[wide(1e24).unwrap()], 64, 64, [0.0, 0.0, 1.0]);
+        for p in [image.pixels[0], image.pixels[64 * 64 - 1]] {
+            assert!(
+                (p[0] - 0.25).abs() < 1e-3 && (p[2] - 0.75).abs() < 1e-3,
+                "{p:?}"
+            );
+        }
+        // σ = 10²⁰ px: the conic itself is below f32's normal range.
+        assert_eq!(wide(1e40), Err(Rejection::Degenerate));
     }
 
     #[test]
