@@ -129,7 +129,7 @@ struct ImageArgs {
     #[arg(long)]
     threads: Option<usize>,
     /// Most surfels a scene may have, all objects together (each is counted before it is
-    /// made; default 8000000, about 2.5 GB at the peak of a render).
+    /// made; default 8000000, about 3 GB at the peak of a render).
     #[arg(long)]
     max_surfels: Option<usize>,
     /// Spatial samples per pixel where triangles are drawn, an n × n grid: 1, 4, 9, …, 64

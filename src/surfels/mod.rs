@@ -83,8 +83,8 @@ impl Surfel {
 }
 
 /// Surfels a scene may have unless told otherwise: a spacing typo must not eat the machine.
-/// A surfel costs about 300 bytes at the peak of a render (20 million took 6.1 GB), so this is
-/// about 2.5 GB.
+/// A surfel costs 300–360 bytes at the peak of a render (20 million took 6.1 GB; a one-triangle
+/// mesh of 8 million peaked at 2.88 GB with `blur` and `kernel3d`), so this is about 3 GB.
 pub const DEFAULT_SURFEL_BUDGET: usize = 8_000_000;
 
 /// The largest surfel budget that may be asked for.
