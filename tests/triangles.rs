@@ -403,6 +403,47 @@ fn a_face_turning_away_from_the_light_is_lit_while_it_faces_it() {
 }
 
 #[test]
+fn a_triangle_scaled_far_past_the_image_covers_the_same_half_of_it() {
+    // Its hypotenuse runs through the view's centre while its corners lie ~10¹⁸ px out at scale
+    // 10¹⁷: rounding its screen hull's edges by ulps of that moved them by pixels at 10¹⁶ and
+    // left every row empty at 10¹⁷, with the edge functions exact throughout.
+    let mesh = Mesh {
+        positions: vec![
+            DVec3::new(-0.5, -0.5, 0.0),
+            DVec3::new(0.5, -0.5, 0.0),
+            DVec3::new(-0.5, 0.5, 0.0),
+        ],
+        triangles: vec![[0, 1, 2]],
+    };
+    let image = |scale: f64, method: &Method| {
+        let pose = Pose {
+            scale,
+            ..Pose::IDENTITY
+        };
+        let s = scene(24, 4).with_object(object("t", &mesh, [0.6; 3], &[(0.0, pose)]));
+        render(&s, method)
+    };
+    for method in [Method::STATIC, Method::ANALYTIC] {
+        let expected = image(1e3, &method).image;
+        let covered = expected.pixels.iter().filter(|p| p[0] > 0.0).count();
+        assert!((250..=330).contains(&covered), "about half: {covered}");
+        for scale in [1e15, 1e16, 1e17, 1e20, 1e100] {
+            assert!(
+                image(scale, &method).image.pixels == expected.pixels,
+                "{} at {scale}",
+                method.name()
+            );
+        }
+        // Past 10¹⁰⁰ the depth's products of three corner coordinates would overflow (at 10¹⁶⁰
+        // the edge functions' products of two did, and nothing was drawn or said): refused and
+        // counted.
+        let refused = image(1e160, &method);
+        assert_eq!(refused.stats.triangles.too_far, 1, "{}", method.name());
+        assert!(refused.image.pixels.iter().all(|p| *p == [0.0; 3]));
+    }
+}
+
+#[test]
 fn extreme_triangles_stay_finite_and_their_lists_bounded() {
     let cases = [
         // Across the image a million times its width in one exposure.

@@ -177,6 +177,9 @@ pub struct TriangleStats {
     pub items: usize,
     /// Items left out because a corner stayed behind the near plane the whole time.
     pub behind_near: usize,
+    /// Items left out because a camera-space corner coordinate (or its motion) lies beyond
+    /// 10¹⁰⁰ (`tct::MAX_CORNER_COORDINATE`), where the depth's products of three overflow a double.
+    pub too_far: usize,
     /// Intervals inserted into sample lists (`analytic`).
     pub intervals: usize,
     /// The longest interval list of one sample.
@@ -218,13 +221,20 @@ impl TriangleStats {
     /// Human-readable account for `--explain` (empty when no triangle was drawn).
     #[must_use]
     pub fn explain(&self) -> String {
-        if self.items == 0 && self.behind_near == 0 {
+        if self.items == 0 && self.behind_near == 0 && self.too_far == 0 {
             return String::new();
         }
         let mut out = format!(
             "triangles: {} items (triangle × sub-segment or instant), {} spatial samples per pixel; {} left out behind the near plane\n",
             self.items, self.spatial_samples, self.behind_near
         );
+        if self.too_far > 0 {
+            out.push_str(&format!(
+                "  {} items left out too far out for double precision (a camera-space corner beyond {:e} of the eye: scale the scene down)\n",
+                self.too_far,
+                tct::MAX_CORNER_COORDINATE
+            ));
+        }
         if self.shadow_tiles > 0 {
             out.push_str(&format!(
                 "  shadow maps: {} item × tile pairs left out, and {} of {} tiles left empty (objects that cannot shadow themselves, wholly deeper there than every other object)\n",
@@ -269,6 +279,7 @@ impl TriangleStats {
     pub(crate) fn add(&mut self, other: &TriangleStats) {
         self.items += other.items;
         self.behind_near += other.behind_near;
+        self.too_far += other.too_far;
         self.intervals += other.intervals;
         self.peak_per_sample = self.peak_per_sample.max(other.peak_per_sample);
         self.compressed += other.compressed;
@@ -361,6 +372,8 @@ struct Prepared<'a> {
     items: Vec<Item>,
     /// Triangle × segment pairs left out, wholly behind the near plane.
     behind_near: usize,
+    /// Triangle × segment pairs left out, too far out for double precision.
+    too_far: usize,
     /// Whether some item is behind the near plane part of its segment.
     near_clipped: bool,
     /// Whether surfels are drawn behind these triangles, which [`TriangleImage::hidden_beyond`]
@@ -515,11 +528,16 @@ impl<'a> Prepared<'a> {
             objects,
             items: Vec::new(),
             behind_near: 0,
+            too_far: 0,
             near_clipped: false,
             occludes_surfels: (0..scene.objects.len()).any(|index| !plan.draws_triangles(index)),
             depth_tolerance,
         };
-        (prepared.items, prepared.behind_near, prepared.near_clipped) = prepared.make_items(count);
+        (
+            prepared.items,
+            [prepared.behind_near, prepared.too_far],
+            prepared.near_clipped,
+        ) = prepared.make_items(count);
         prepared
     }
 
@@ -572,13 +590,15 @@ impl<'a> Prepared<'a> {
     /// on screen, with its pixel bounds: the projections of its corners at the ends of its time
     /// in front (a segment's straight path in camera space projects to a straight path on
     /// screen, so they bound it), widened by a pixel.
-    /// Also returns how many were left out behind the near plane, and whether some item is
-    /// behind it part of the time. `count` is the number of triangle × segment pairs.
-    fn make_items(&self, count: usize) -> (Vec<Item>, usize, bool) {
+    /// Also returns how many were left out behind the near plane and too far out for double
+    /// precision, and whether some item is behind the near plane part of the time. `count` is the
+    /// number of triangle × segment pairs.
+    fn make_items(&self, count: usize) -> (Vec<Item>, [usize; 2], bool) {
         let camera = &self.camera;
         let (width, height) = (camera.width, camera.height);
         let mut items = Vec::with_capacity(count);
         let mut behind_near = 0;
+        let mut too_far = 0;
         let mut near_clipped = false;
         for (o, (_, mesh, segments)) in self.objects.iter().enumerate() {
             for s in 0..segments.len() {
@@ -595,6 +615,10 @@ impl<'a> Prepared<'a> {
                         plain: one_colour && n0 == n1 && n1 == n2,
                     };
                     let triangle = self.corners(&item);
+                    if !triangle.within_double_range() {
+                        too_far += 1;
+                        continue;
+                    }
                     let Some(window) = triangle.in_front(camera.near) else {
                         behind_near += 1;
                         continue;
@@ -627,7 +651,7 @@ impl<'a> Prepared<'a> {
                 }
             }
         }
-        (items, behind_near, near_clipped)
+        (items, [behind_near, too_far], near_clipped)
     }
 
     /// The items binned to the tiles of `grid` by their bounds.
@@ -682,6 +706,7 @@ impl<'a> Prepared<'a> {
         let mut total = TriangleStats {
             items: self.items.len(),
             behind_near: self.behind_near,
+            too_far: self.too_far,
             spatial_samples: camera.spatial_samples,
             shadow_tiles: self.shadows.iter().map(ShadowMap::tiles).sum(),
             shadow_tiles_left_empty: self.shadows.iter().map(ShadowMap::left_empty).sum(),
@@ -821,19 +846,32 @@ impl<'a> Prepared<'a> {
         let [ix0, iy0, ix1, iy1] = self.items[index as usize].bounds;
         // A triangle covers samples within the hull of its corners' screen paths only; the
         // rest of its bounds are skipped a row at a time.
+        // Its corners' projections and an edge's x at a row round by a few ulps of the largest
+        // corner coordinate, which HULL_MARGIN_PX covers up to about 10¹¹ px; beyond, the band of
+        // rows and the range widen by the rounding itself (a hull whose rounding is not finite
+        // bounds nothing, and the item's bounds are tested in full).
         let hull = screen_corners(camera, &placed.triangle, placed.window)
-            .map(|corners| ScreenHull::new(&corners));
+            .map(|corners| ScreenHull::new(&corners))
+            .and_then(|hull| {
+                let rounding = HULL_ROUNDING * hull.reach;
+                match rounding {
+                    r if r <= HULL_MARGIN_PX => Some((hull, 0.0, HULL_MARGIN_PX)),
+                    r if r.is_finite() => Some((hull, r, r)),
+                    _ => None,
+                }
+            });
         let [nearest, _] = placed.triangle.depth_bounds();
         let no_tile = TileShared::default();
         for y in iy0.max(y0)..iy1.min(y1) {
             let (mut from, mut to) = (ix0.max(x0), ix1.min(x1));
-            if let Some(hull) = &hull {
-                let Some([lo, hi]) = hull.x_range(f64::from(y) + oy0, f64::from(y) + oy1) else {
+            if let Some((hull, band, margin)) = &hull {
+                let rows = [f64::from(y) + oy0 - band, f64::from(y) + oy1 + band];
+                let Some([lo, hi]) = hull.x_range(rows[0], rows[1]) else {
                     continue;
                 };
                 let pixel = |x: f64| x.clamp(0.0, f64::from(u32::MAX)) as u32;
-                from = from.max(pixel((lo - ox1 - HULL_MARGIN_PX).ceil()));
-                to = to.min(pixel((hi - ox0 + HULL_MARGIN_PX).floor() + 1.0));
+                from = from.max(pixel((lo - ox1 - margin).ceil()));
+                to = to.min(pixel((hi - ox0 + margin).floor() + 1.0));
             }
             for x in from..to {
                 let pixel = (y - y0) as usize * w + (x - x0) as usize;
@@ -1897,6 +1935,11 @@ const WHOLE_OBJECT: u32 = u32::MAX;
 /// exactly, so that rounding in the projection never drops one the edge functions cover.
 const HULL_MARGIN_PX: f64 = 1e-3;
 
+/// Rounding of a screen hull's edges per px of its largest corner coordinate: a corner's
+/// projection rounds by a few ulps of it, and an edge's x at a row, p.x + slope·(y − p.y), by a
+/// few more (its terms reach twice it). Past 10¹⁶ px the edges are off by whole pixels.
+const HULL_ROUNDING: f64 = 32.0 * f64::EPSILON;
+
 /// Where the corners of `triangle` project at the ends of `window`: each corner moves on a
 /// straight line in camera space, which projects to a straight line on screen, so the triangle
 /// at every time in the window lies in their convex hull. `None` when one does not project (a
@@ -1920,6 +1963,8 @@ struct ScreenHull {
     /// Each edge: its lower and upper end in y and its dx/dy (0 for a level edge).
     edges: [(DVec2, DVec2, f64); 6],
     count: usize,
+    /// Its largest corner coordinate in magnitude, px.
+    reach: f64,
 }
 
 impl ScreenHull {
@@ -1955,7 +2000,14 @@ impl ScreenHull {
             };
             *edge = (p, q, slope);
         }
-        ScreenHull { edges, count }
+        let reach = points
+            .iter()
+            .fold(0.0f64, |m, p| m.max(p.x.abs()).max(p.y.abs()));
+        ScreenHull {
+            edges,
+            count,
+            reach,
+        }
     }
 
     /// The x extent of the hull within the band of rows y0 ≤ y ≤ y1, `None` when it misses it.

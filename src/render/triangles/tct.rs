@@ -53,7 +53,21 @@ struct EdgeCoefficients {
 #[derive(Clone, Copy, Debug)]
 pub struct EdgeFunctions([EdgeCoefficients; 3]);
 
+/// Largest camera-space corner coordinate (and corner motion) a triangle may have: its depth's
+/// coefficients are sums of products of three, which overflow a double past about 10¹⁰².
+pub const MAX_CORNER_COORDINATE: f64 = 1e100;
+
 impl MovingTriangle {
+    /// Whether every corner coordinate and displacement is within [`MAX_CORNER_COORDINATE`], so
+    /// that its edge and depth functions are finite.
+    #[must_use]
+    pub fn within_double_range(&self) -> bool {
+        self.start
+            .iter()
+            .chain(&self.delta)
+            .all(|v| v.abs().max_element() <= MAX_CORNER_COORDINATE)
+    }
+
     /// The corners at s.
     #[must_use]
     pub fn at(&self, s: f64) -> [DVec3; 3] {
