@@ -505,6 +505,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
             out.stats.footprints as f64 / seconds
         ));
     }
+    for departure in plan.departures().iter().chain(&out.stats.departures()) {
+        eprintln!("note: {departure} (--explain says more)");
+    }
     eprintln!(
         "wrote {} ({} {}×{}, {seconds:.3} s)",
         args.output.display(),

@@ -445,6 +445,36 @@ impl<'a> Plan<'a> {
             .fold(0.0, f64::max)
     }
 
+    /// Where the plan departs from what the scene asked, one short line each: objects whose
+    /// sub-segments were capped, so their paths are followed less closely than the tolerance
+    /// asks (in chord deviation, length or weight along them).
+    /// [`Plan::explain`] says more.
+    #[must_use]
+    pub fn departures(&self) -> Vec<String> {
+        self.objects
+            .iter()
+            .filter_map(|o| match &o.motion {
+                ObjectMotion::Moving {
+                    capped: Some(cap), ..
+                } => {
+                    let cap = match cap {
+                        SegmentCap::PerInterval => format!(
+                            "{MAX_SEGMENTS_PER_INTERVAL} sub-segments per keyframe interval, the most drawn"
+                        ),
+                        SegmentCap::Footprints(n) => format!(
+                            "{n} equal sub-segments, its share of the scene's {MAX_MOTION_FOOTPRINTS} motion footprints"
+                        ),
+                    };
+                    Some(format!(
+                        "{:?}: its path is drawn in {cap}, fewer than the tolerance of {} px asks for",
+                        o.name, self.tolerance_px
+                    ))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
     /// Human-readable account of the plan and, when given, of what rendering culled.
     #[must_use]
     pub fn explain(&self, culled: Option<&Culled>) -> String {
@@ -777,6 +807,14 @@ struct Fit {
     size_change: f64,
 }
 
+impl Fit {
+    /// Whether the pieces hold the tolerance: chord deviation (as [`Drawn::error`] puts it, once
+    /// set), length and weight departure within their limits.
+    fn holds(&self, tolerance_px: f64, max_length: f64, max_weight: f64) -> bool {
+        self.deviation <= tolerance_px && self.longest <= max_length && self.weight <= max_weight
+    }
+}
+
 /// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal
 /// pieces of [t0, t1].
 fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
@@ -861,6 +899,15 @@ fn plan_motion(
     let (mut segments, mut deviation_px, mut longest_segment_px, mut capped) =
         (Vec::new(), 0.0f64, 0.0f64, None);
     let mut uncapped_streaks = matches!(drawn, Drawn::Streaks { .. });
+    // The longest sub-segment and the largest weight deviation allowed, for a streak free of the
+    // length cap or not.
+    let limits = |uncapped: bool| match drawn {
+        Drawn::Triangles => (f64::INFINITY, f64::INFINITY),
+        Drawn::Streaks { .. } if uncapped => (f64::INFINITY, MAX_WEIGHT_DEVIATION),
+        Drawn::Streaks { .. } | Drawn::Ellipses => {
+            (length_per_tolerance * tolerance_px, MAX_WEIGHT_DEVIATION)
+        }
+    };
     for pair in breaks.windows(2) {
         if segments.len() > max_segments {
             break;
@@ -877,16 +924,8 @@ fn plan_motion(
         let fit = loop {
             let mut fit = measure(camera, object, &probes, t0, t1, k);
             fit.deviation = drawn.error(&fit);
-            let (max_length, max_weight) = match drawn {
-                Drawn::Triangles => (f64::INFINITY, f64::INFINITY),
-                Drawn::Streaks { .. } if uncapped(&fit) => (f64::INFINITY, MAX_WEIGHT_DEVIATION),
-                Drawn::Streaks { .. } | Drawn::Ellipses => {
-                    (length_per_tolerance * tolerance_px, MAX_WEIGHT_DEVIATION)
-                }
-            };
-            let holds = fit.deviation <= tolerance_px
-                && fit.longest <= max_length
-                && fit.weight <= max_weight;
+            let (max_length, max_weight) = limits(uncapped(&fit));
+            let holds = fit.holds(tolerance_px, max_length, max_weight);
             if holds || k >= MAX_SEGMENTS_PER_INTERVAL {
                 if !holds {
                     capped = Some(SegmentCap::PerInterval);
@@ -915,9 +954,14 @@ fn plan_motion(
     }
     if segments.len() > max_segments {
         segments = pieces(open, close, max_segments).collect();
-        let fit = measure(camera, object, &probes, open, close, max_segments);
-        (deviation_px, longest_segment_px) = (drawn.error(&fit), fit.longest);
-        capped = Some(SegmentCap::Footprints(max_segments));
+        let mut fit = measure(camera, object, &probes, open, close, max_segments);
+        fit.deviation = drawn.error(&fit);
+        (deviation_px, longest_segment_px) = (fit.deviation, fit.longest);
+        // Per interval the counts overshoot what holds (each jump adds at least one), so equal
+        // sub-segments within the share may still hold the tolerance: then nothing was given up.
+        let (max_length, max_weight) = limits(false);
+        capped = (!fit.holds(tolerance_px, max_length, max_weight))
+            .then_some(SegmentCap::Footprints(max_segments));
         uncapped_streaks = false;
     }
     // Each probe's screen path, summed over short chords in time order.

@@ -99,6 +99,49 @@ fn a_good_scene_renders_and_explains_itself() {
     let png = image::open(dir.join("out.png")).unwrap();
     assert_eq!((png.width(), png.height()), (48, 32));
     assert!(dir.join("out.exr").exists());
+    assert!(
+        !String::from_utf8_lossy(&out.stderr).contains("note:"),
+        "nothing departs from this scene"
+    );
+}
+
+#[test]
+fn a_render_that_departs_from_its_scene_says_so_without_being_asked() {
+    // A triangle growing to 10³⁰⁰ times its size over the exposure: its path cannot be followed
+    // within the tolerance, and its corners pass where double precision overflows. Both are
+    // said on standard error, without --explain.
+    let scene = format!(
+        "{SCENE}
+[[object]]
+name = \"growing\"
+shape = {{ type = \"mesh\", path = \"triangle.obj\", samples = 200, draw = \"triangles\" }}
+
+[[object.keyframe]]
+t = 0.0
+[[object.keyframe]]
+t = 1.0
+scale = 1e300
+"
+    );
+    let triangle: &[u8] = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let dir = workdir("departs");
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    std::fs::write(dir.join("triangle.obj"), triangle).unwrap();
+    let out = streak(
+        &["render", "scene.toml", "-m", "analytic", "-o", "out.png"],
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    for needle in [
+        "note: \"growing\": its path is drawn in 256 sub-segments per keyframe interval",
+        "fewer than the tolerance of",
+        "triangle item(s) left out",
+        "(--explain says more)",
+    ] {
+        assert!(stderr.contains(needle), "{needle:?} missing from: {stderr}");
+    }
+    assert!(!stderr.contains("\"ball\""), "{stderr}");
 }
 
 #[test]

@@ -343,9 +343,37 @@ mod stiff {
         assert_eq!(*capped, Some(SegmentCap::Footprints(share)));
         assert_eq!(segments.len(), share);
         assert!(plan.explain(None).contains("motion footprints"));
+        assert!(plan.departures()[0].contains("its share of the scene's"));
         // Each keyframe interval is straight, but the equal pieces of the cap are not the
         // streaks as long as the path allows that it would otherwise be.
         assert!(!plan.explain(None).contains("as long as the path allows"));
+    }
+
+    #[test]
+    fn equal_sub_segments_that_hold_the_tolerance_are_not_called_capped() {
+        // The same square sliding straight and uniformly through 10,000 keyframes: one
+        // sub-segment per interval passes its share of the footprints, but equal sub-segments
+        // over the exposure follow a straight uniform path exactly, so nothing is given up and
+        // nothing is said.
+        let camera = camera(64, 64);
+        let keys: Vec<(f64, Pose)> = (0..10_000)
+            .map(|i| {
+                let t = f64::from(i) / 9_999.0;
+                (t, pose(DVec3::new(t - 0.5, 0.0, 0.0), 0.0))
+            })
+            .collect();
+        let square = patch(DVec3::ZERO, [2.0, 2.0], 0.04, false);
+        let share = MAX_MOTION_FOOTPRINTS / square.len();
+        let sliding = scene(camera, vec![object(square, motion(&keys))]);
+        let plan = Plan::new(&sliding, &Method::BLUR).unwrap();
+        let ObjectMotion::Moving {
+            segments, capped, ..
+        } = &plan.objects[0].motion
+        else {
+            panic!("the square moves");
+        };
+        assert_eq!((segments.len(), *capped), (share, None));
+        assert!(plan.departures().is_empty(), "{:?}", plan.departures());
     }
 
     #[test]

@@ -424,7 +424,9 @@ fn a_triangle_scaled_far_past_the_image_covers_the_same_half_of_it() {
         render(&s, method)
     };
     for method in [Method::STATIC, Method::ANALYTIC] {
-        let expected = image(1e3, &method).image;
+        let drawn = image(1e3, &method);
+        assert_eq!(drawn.stats.departures(), Vec::<String>::new());
+        let expected = drawn.image;
         let covered = expected.pixels.iter().filter(|p| p[0] > 0.0).count();
         assert!((250..=330).contains(&covered), "about half: {covered}");
         for scale in [1e15, 1e16, 1e17, 1e20, 1e100] {
@@ -439,6 +441,11 @@ fn a_triangle_scaled_far_past_the_image_covers_the_same_half_of_it() {
         // counted.
         let refused = image(1e160, &method);
         assert_eq!(refused.stats.triangles.too_far, 1, "{}", method.name());
+        let said = refused.stats.departures();
+        assert!(
+            said[0].starts_with("1 triangle item(s) left out"),
+            "{said:?}"
+        );
         assert!(refused.image.pixels.iter().all(|p| *p == [0.0; 3]));
     }
 }

@@ -288,6 +288,18 @@ impl Stats {
         self.tile_entries = self.tile_entries.max(raster.tile_entries);
     }
 
+    /// Where the render departed from the scene or its plan, one short line each (triangles
+    /// left out, shadow maps fitted to their budget, sub-frames capped); the `explain` accounts
+    /// say more.
+    #[must_use]
+    pub fn departures(&self) -> Vec<String> {
+        let mut out = self.triangles.departures();
+        if let MethodStats::Kernel3d(kernels) = &self.method {
+            out.extend(kernels.departures());
+        }
+        out
+    }
+
     /// What `hint` did, if it was a hint.
     #[must_use]
     pub fn hint(&self) -> Option<&HintStats> {

@@ -100,6 +100,17 @@ pub struct KernelStats {
 }
 
 impl KernelStats {
+    /// Where the kernels departed from the plan: its sub-frames capped at [`MAX_SUBFRAMES`].
+    #[must_use]
+    pub fn departures(&self) -> Vec<String> {
+        self.planned_subframes
+            .map(|planned| {
+                format!("the plan's {planned} sub-frames capped at {MAX_SUBFRAMES} equal ones")
+            })
+            .into_iter()
+            .collect()
+    }
+
     /// Human-readable account for `--explain`.
     #[must_use]
     pub fn explain(&self) -> String {

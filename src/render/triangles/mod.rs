@@ -223,6 +223,31 @@ impl TriangleStats {
         out
     }
 
+    /// Where drawing the triangles departed from the scene, one short line each: items left
+    /// out too far out for double precision, and shadow maps drawn coarser or with their lists
+    /// cut to fit their budget. [`TriangleStats::explain`] says more.
+    #[must_use]
+    pub fn departures(&self) -> Vec<String> {
+        let lists = &self.shadow_lists;
+        let too_far = (self.too_far > 0).then(|| {
+            format!(
+                "{} triangle item(s) left out: a corner lies beyond {:e} of the eye, where double precision overflows (scale the scene down)",
+                self.too_far,
+                tct::MAX_CORNER_COORDINATE
+            )
+        });
+        let coarsened = lists.coarsened.map(|(asked, drawn)| {
+            format!("a shadow map of {asked}² texels drawn at {drawn}² to fit its memory budget (softer shadow edges)")
+        });
+        let cut = lists.cap.map(|cap| {
+            format!(
+                "shadow-map texel lists cut to their {cap} longest pieces to fit their memory budget ({} shorter shadows left out)",
+                lists.cut
+            )
+        });
+        [too_far, coarsened, cut].into_iter().flatten().collect()
+    }
+
     /// Add another render's counts (the reference's frames).
     pub(crate) fn add(&mut self, other: &TriangleStats) {
         self.items += other.items;
