@@ -317,63 +317,64 @@ mod stiff {
         }
     }
 
-    #[test]
-    fn ten_thousand_keyframes_keep_the_motion_footprints_within_their_budget() {
-        // A square of 2,500 surfels zigzagging through 10,000 keyframes (the most an object may
-        // have): one sub-segment per keyframe interval would already be 2.5·10⁷ motion ellipses.
-        // The plan cuts the exposure into the object's share of the budget instead, and says so.
-        let camera = camera(64, 64);
+    /// What the plan makes of a square of 2,500 surfels at x = `x(i)` at each of 10,000 keyframes
+    /// (the most an object may have), the object's share of the motion footprints, its
+    /// sub-segments and cap, and what `--explain` and the notes say.
+    fn square_through_ten_thousand_keyframes(
+        x: impl Fn(u32) -> f64,
+    ) -> (usize, usize, Option<SegmentCap>, String, Vec<String>) {
         let keys: Vec<(f64, Pose)> = (0..10_000)
             .map(|i| {
-                let x = if i % 2 == 0 { -0.5 } else { 0.5 };
-                (f64::from(i) / 9_999.0, pose(DVec3::new(x, 0.0, 0.0), 0.0))
-            })
-            .collect();
-        let square = patch(DVec3::ZERO, [2.0, 2.0], 0.04, false);
-        let surfels = square.len();
-        let zigzag = scene(camera, vec![object(square, motion(&keys))]);
-        let plan = Plan::new(&zigzag, &Method::BLUR).unwrap();
-        let ObjectMotion::Moving {
-            segments, capped, ..
-        } = &plan.objects[0].motion
-        else {
-            panic!("the square moves");
-        };
-        let share = MAX_MOTION_FOOTPRINTS / surfels;
-        assert_eq!(*capped, Some(SegmentCap::Footprints(share)));
-        assert_eq!(segments.len(), share);
-        assert!(plan.explain(None).contains("motion footprints"));
-        assert!(plan.departures()[0].contains("its share of the scene's"));
-        // Each keyframe interval is straight, but the equal pieces of the cap are not the
-        // streaks as long as the path allows that it would otherwise be.
-        assert!(!plan.explain(None).contains("as long as the path allows"));
-    }
-
-    #[test]
-    fn equal_sub_segments_that_hold_the_tolerance_are_not_called_capped() {
-        // The same square sliding straight and uniformly through 10,000 keyframes: one
-        // sub-segment per interval passes its share of the footprints, but equal sub-segments
-        // over the exposure follow a straight uniform path exactly, so nothing is given up and
-        // nothing is said.
-        let camera = camera(64, 64);
-        let keys: Vec<(f64, Pose)> = (0..10_000)
-            .map(|i| {
-                let t = f64::from(i) / 9_999.0;
-                (t, pose(DVec3::new(t - 0.5, 0.0, 0.0), 0.0))
+                (
+                    f64::from(i) / 9_999.0,
+                    pose(DVec3::new(x(i), 0.0, 0.0), 0.0),
+                )
             })
             .collect();
         let square = patch(DVec3::ZERO, [2.0, 2.0], 0.04, false);
         let share = MAX_MOTION_FOOTPRINTS / square.len();
-        let sliding = scene(camera, vec![object(square, motion(&keys))]);
-        let plan = Plan::new(&sliding, &Method::BLUR).unwrap();
+        let scene = scene(camera(64, 64), vec![object(square, motion(&keys))]);
+        let plan = Plan::new(&scene, &Method::BLUR).unwrap();
         let ObjectMotion::Moving {
             segments, capped, ..
         } = &plan.objects[0].motion
         else {
             panic!("the square moves");
         };
-        assert_eq!((segments.len(), *capped), (share, None));
-        assert!(plan.departures().is_empty(), "{:?}", plan.departures());
+        (
+            share,
+            segments.len(),
+            *capped,
+            plan.explain(None),
+            plan.departures(),
+        )
+    }
+
+    #[test]
+    fn ten_thousand_keyframes_keep_the_motion_footprints_within_their_budget() {
+        // The square zigzagging: one sub-segment per keyframe interval would already be 2.5·10⁷
+        // motion ellipses. The plan cuts the exposure into the object's share of the budget
+        // instead, and says so.
+        let (share, segments, capped, explain, departures) =
+            square_through_ten_thousand_keyframes(|i| if i % 2 == 0 { -0.5 } else { 0.5 });
+        assert_eq!(capped, Some(SegmentCap::Footprints(share)));
+        assert_eq!(segments, share);
+        assert!(explain.contains("motion footprints"));
+        assert!(departures[0].contains("its share of the scene's"));
+        // Each keyframe interval is straight, but the equal pieces of the cap are not the
+        // streaks as long as the path allows that it would otherwise be.
+        assert!(!explain.contains("as long as the path allows"));
+    }
+
+    #[test]
+    fn equal_sub_segments_that_hold_the_tolerance_are_not_called_capped() {
+        // The square sliding straight and uniformly: one sub-segment per interval passes its
+        // share of the footprints, but equal sub-segments over the exposure follow a straight
+        // uniform path exactly, so nothing is given up and nothing is said.
+        let (share, segments, capped, _, departures) =
+            square_through_ten_thousand_keyframes(|i| f64::from(i) / 9_999.0 - 0.5);
+        assert_eq!((segments, capped), (share, None));
+        assert!(departures.is_empty(), "{departures:?}");
     }
 
     #[test]
