@@ -506,7 +506,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         ));
     }
     for departure in plan.departures().iter().chain(&out.stats.departures()) {
-        eprintln!("note: {departure} (--explain says more)");
+        eprintln!("note: {departure}; --explain says more");
     }
     eprintln!(
         "wrote {} ({} {}×{}, {seconds:.3} s)",

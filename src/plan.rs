@@ -816,8 +816,16 @@ impl Fit {
 }
 
 /// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal
-/// pieces of [t0, t1].
-fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64, k: usize) -> Fit {
+/// pieces of [t0, t1], sampled at equal shares of each piece and at the `corners` (keyframe
+/// times) within it.
+fn measure(
+    camera: &Camera,
+    object: &Object,
+    probes: &[usize],
+    [t0, t1]: [f64; 2],
+    k: usize,
+    corners: &[f64],
+) -> Fit {
     let (mut deviation, mut longest, mut weight, mut timed, mut uniform, mut size_change) =
         (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let at = |t: f64| probes_at(camera, object, probes, t);
@@ -825,8 +833,20 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
     let mut starts = at(t0);
     for [a, b] in pieces(t0, t1, k) {
         let ends = at(b);
-        let inside: Vec<Vec<Option<ProbeView>>> = (1..DEVIATION_SAMPLES)
-            .map(|s| at(a + (b - a) * (s as f64 / DEVIATION_SAMPLES as f64)))
+        // Equal shares of the piece, and the keyframe corners within it, where a path bends
+        // most and the deviation peaks between the equal samples.
+        let shares: Vec<f64> = (1..DEVIATION_SAMPLES)
+            .map(|s| s as f64 / DEVIATION_SAMPLES as f64)
+            .chain(
+                corners
+                    .iter()
+                    .filter(|&&t| t > a && t < b)
+                    .map(|&t| (t - a) / (b - a)),
+            )
+            .collect();
+        let inside: Vec<Vec<Option<ProbeView>>> = shares
+            .iter()
+            .map(|&share| at(a + (b - a) * share))
             .collect();
         for (probe, (&pa, &pb)) in starts.iter().zip(&ends).enumerate() {
             let (Some(pa), Some(pb)) = (pa, pb) else {
@@ -842,8 +862,7 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
             };
             longest = longest.max(pa.screen.distance(pb.screen));
             size_change = size_change.max((pb.screen_sigma - pa.screen_sigma).abs());
-            for (s, views) in (1..DEVIATION_SAMPLES).zip(&inside) {
-                let share = s as f64 / DEVIATION_SAMPLES as f64;
+            for (&share, views) in shares.iter().zip(&inside) {
                 let Some(p) = views[probe] else {
                     (deviation, uniform) = (f64::INFINITY, f64::INFINITY);
                     continue;
@@ -874,7 +893,8 @@ fn measure(camera: &Camera, object: &Object, probes: &[usize], t0: f64, t1: f64,
 }
 
 /// The sub-segments of `object`'s motion over [open, close], within `tolerance_px` unless more
-/// than `max_segments` would be needed: then `max_segments` equal ones, marked capped. How they
+/// than `max_segments` would be needed: then `max_segments` equal ones, marked capped unless they
+/// hold the tolerance themselves. How they
 /// are `drawn` decides the error ([`Drawn::error`]): triangles' corners move uniformly along
 /// camera-space chords, so a point's error is its distance from where the chord puts it at the
 /// same time, and neither a chord's length nor a splat's weight bends anything; an exact streak
@@ -922,7 +942,7 @@ fn plan_motion(
         };
         let mut k = 1;
         let fit = loop {
-            let mut fit = measure(camera, object, &probes, t0, t1, k);
+            let mut fit = measure(camera, object, &probes, [t0, t1], k, &[]);
             fit.deviation = drawn.error(&fit);
             let (max_length, max_weight) = limits(uncapped(&fit));
             let holds = fit.holds(tolerance_px, max_length, max_weight);
@@ -954,12 +974,24 @@ fn plan_motion(
     }
     if segments.len() > max_segments {
         segments = pieces(open, close, max_segments).collect();
-        let mut fit = measure(camera, object, &probes, open, close, max_segments);
+        // Equal pieces straddle keyframes, whose corners are measured too.
+        let corners = &breaks[1..breaks.len() - 1];
+        let mut fit = measure(
+            camera,
+            object,
+            &probes,
+            [open, close],
+            max_segments,
+            corners,
+        );
         fit.deviation = drawn.error(&fit);
         (deviation_px, longest_segment_px) = (fit.deviation, fit.longest);
         // Per interval the counts overshoot what holds (each jump adds at least one), so equal
         // sub-segments within the share may still hold the tolerance: then nothing was given up.
-        let (max_length, max_weight) = limits(false);
+        // Streaks free of the length cap in every interval are free of it here too, unless
+        // their size changes along an equal piece by more than the tolerance.
+        let free = uncapped_streaks && fit.size_change <= tolerance_px;
+        let (max_length, max_weight) = limits(free);
         capped = (!fit.holds(tolerance_px, max_length, max_weight))
             .then_some(SegmentCap::Footprints(max_segments));
         uncapped_streaks = false;

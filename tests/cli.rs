@@ -137,7 +137,7 @@ scale = 1e300
         "note: \"growing\": its path is drawn in 256 sub-segments per keyframe interval",
         "fewer than the tolerance of",
         "triangle item(s) left out",
-        "(--explain says more)",
+        "; --explain says more",
     ] {
         assert!(stderr.contains(needle), "{needle:?} missing from: {stderr}");
     }

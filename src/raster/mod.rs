@@ -1259,7 +1259,7 @@ mod tests {
     fn a_footprint_a_trillion_pixels_wide_still_covers_the_image_and_past_f32_is_rejected() {
         // σ = 10¹² px: the conic's a² (10⁻⁴⁸) underflows f32, where the rows' narrowing once
         // became 0/0 and the footprint lost every pixel (a surfel scaled by 10¹² in front of the
-        // camera).
+        // camera made one 10¹¹ px wide, and lost them too).
         let wide = |variance: f64| {
             gaussian(
                 DVec2::new(32.0, 32.0),

@@ -129,8 +129,9 @@ impl Mesh {
     }
 
     /// The error for a mesh none of whose triangles can be drawn or sampled, naming `faces` and
-    /// why: zero areas, areas too large for a double (coordinates near 10¹⁵⁴ and beyond: the
-    /// model is to be scaled down), or indices past the vertices.
+    /// why: zero areas, areas too large for a double (coordinates near 10⁷⁷ and beyond, where the
+    /// squared length of an edge cross product overflows: the model is to be scaled down), or
+    /// indices past the vertices.
     #[must_use]
     pub fn no_faces_left(&self) -> Error {
         let (mut overflowing, mut outside) = (0, 0);

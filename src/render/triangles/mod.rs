@@ -21,8 +21,7 @@ use glam::{DAffine3, DMat3, DVec2, DVec3};
 
 use crate::framebuffer::Framebuffer;
 use crate::plan::{ObjectMotion, Plan};
-use crate::raster::TILE_PX;
-use crate::raster::{TileGrid, TileLists};
+use crate::raster::{TileGrid, TileLists, TILE_PX};
 use crate::render::{Method, Receivers};
 use crate::scene::{Camera, LightSource, Object, Scene, TriangleMesh, MIN_SHADOW_MAP};
 use hull::{screen_corners, PathHull};

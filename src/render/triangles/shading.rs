@@ -254,7 +254,7 @@ impl Prepared<'_> {
     /// The mean colour of a run of pieces when no shadow map can change its light: it faces away
     /// from each shadowed light all along, or is lit for sure all along its stretch of the
     /// sample's ray (between the depths [`Prepared::depth_range`] bounds), or each piece on its
-    /// own path ([`ShadowMap::surely_lit_between`](shadow::ShadowMap::surely_lit_between)). The surface (normal, point, colour) is found
+    /// own path ([`ShadowMap::surely_lit_between`]). The surface (normal, point, colour) is found
     /// exactly at every piece's ends and interpolated linearly within each piece, as
     /// [`Prepared::piece_colour`] does (the point stays on the ray: a bend of the depth within a
     /// piece moves it along the ray only, which a directional light does not see); the run is
@@ -262,6 +262,8 @@ impl Prepared<'_> {
     /// three Gauss–Legendre times per cut piece, not per sub-segment: the light changes smoothly
     /// across a sub-segment's end, where the pose is continuous. `None` when a shadow may fall
     /// on the run.
+    ///
+    /// [`ShadowMap::surely_lit_between`]: shadow::ShadowMap::surely_lit_between
     fn lit_run_colour(
         &self,
         run: &[Interval],
@@ -398,8 +400,11 @@ impl Prepared<'_> {
     /// The mean irradiance over `span` of a still receiver (its `normal` and `point`, on
     /// `item`), weighted by the shutter. A shadow map whose light gives it nothing, or that holds
     /// no nearer occluder in its texels over the span (`unshadowed` for the whole tile, else
-    /// [`ShadowMap::surely_lit`](shadow::ShadowMap::surely_lit)), leaves it lit; the others give the mean share of their light
-    /// over the span in closed form ([`ShadowMap::mean_visibility`](shadow::ShadowMap::mean_visibility)), and light is linear in it.
+    /// [`ShadowMap::surely_lit`]), leaves it lit; the others give the mean share of their light
+    /// over the span in closed form ([`ShadowMap::mean_visibility`]), and light is linear in it.
+    ///
+    /// [`ShadowMap::surely_lit`]: shadow::ShadowMap::surely_lit
+    /// [`ShadowMap::mean_visibility`]: shadow::ShadowMap::mean_visibility
     fn still_irradiance(
         &self,
         (normal, point): (DVec3, DVec3),
@@ -428,10 +433,13 @@ impl Prepared<'_> {
     /// from the tile's copy of its plane). A moving one is cut where the surface turns towards or
     /// away from a light (eq. 2.5: N·L, quadratic in time, through its values at the piece's ends
     /// and middle) and where a shadow can start or end (exact for a receiver within one texel
-    /// footprint, [`ShadowMap::breakpoints`](shadow::ShadowMap::breakpoints); for one sweeping texels, max(2|pₑ − pₛ|, 5) equal
-    /// cuts, or with `Receivers::Traced` the cuts of [`ShadowMap::traced_breakpoints`](shadow::ShadowMap::traced_breakpoints));
+    /// footprint, [`ShadowMap::breakpoints`]; for one sweeping texels, max(2|pₑ − pₛ|, 5) equal
+    /// cuts, or with `Receivers::Traced` the cuts of [`ShadowMap::traced_breakpoints`]);
     /// visibility is taken at each cut piece's middle and the rest integrated at three
     /// Gauss–Legendre times.
+    ///
+    /// [`ShadowMap::breakpoints`]: shadow::ShadowMap::breakpoints
+    /// [`ShadowMap::traced_breakpoints`]: shadow::ShadowMap::traced_breakpoints
     fn piece_colour(
         &self,
         piece: &Interval,
@@ -592,9 +600,11 @@ impl Prepared<'_> {
         }
     }
 
-    /// `interval` of the ray `d` as the linear depth pieces [`DepthPieces::AtOnce`](super::DepthPieces::AtOnce) would have
+    /// `interval` of the ray `d` as the linear depth pieces [`DepthPieces::AtOnce`] would have
     /// inserted, appended to `out`, its ends kept exactly. A still triangle's depth is one line;
     /// where the depth is undefined inside the interval, it stays the line between its ends.
+    ///
+    /// [`DepthPieces::AtOnce`]: super::DepthPieces::AtOnce
     pub(super) fn depth_pieces_of(
         &self,
         interval: &Interval,
@@ -807,7 +817,9 @@ impl Prepared<'_> {
 
     /// What `item`'s pieces are known by in shadow maps, and what its receivers leave out of
     /// them: its triangle (Palmér's polygon IDs), or the whole object, as [`WHOLE_OBJECT`],
-    /// where the object cannot shadow itself ([`TriangleMesh::shadows_itself`](crate::scene::TriangleMesh::shadows_itself)).
+    /// where the object cannot shadow itself ([`TriangleMesh::shadows_itself`]).
+    ///
+    /// [`TriangleMesh::shadows_itself`]: crate::scene::TriangleMesh::shadows_itself
     pub(super) fn shadow_id(&self, item: &Item) -> (u32, u32) {
         if !self.objects[item.object as usize].1.shadows_itself {
             (item.object, WHOLE_OBJECT)

@@ -53,14 +53,16 @@ pub const MAX_SHADOWED_LIGHTS: usize = 8;
 /// shared evenly between the maps, where each texel record of a tile that holds occluders (its
 /// list start and nearest-occluder summary, 20 bytes) counts as one piece. A map of more texels
 /// than its share is drawn coarser like any other: eight shadowed lights with 4096² maps over a
-/// floor of 3,200 triangles once held 85.6 M pieces (5.2 GB at peak), one per texel past their
-/// shares. A cube zig-zagging 150 times over a floor in one exposure put 256 pieces (as many as a
-/// texel then kept) on each texel under its path, 1 GB in a 1024² map (and a 4096² map could
-/// have asked sixteen times that). A map whose lists would hold more than its share is drawn
-/// again with half the texels per side, as often as it takes: its shadows keep their strength
-/// and soften. Only where even a map of [`crate::scene::MIN_SHADOW_MAP`] texels would not fit is
-/// each texel's list cut to its longest pieces, as many as fit (`cap_within`), at least one each
-/// (at most 8 × 16² more pieces). `--explain` says which. The gallery's scenes hold at most 1.2 M (`armadillo_shadow`).
+/// floor of 3,200 triangles once held 62.8 M pieces (4.22 GB at peak, at 320 × 256), one per
+/// texel past their shares; now 3.9 M pieces and 3.5 M texel records (283 MB). A cube
+/// zig-zagging 150 times over a floor in one exposure put 256 pieces (as many as a texel then
+/// kept) on each texel under its path, 1 GB in a 1024² map (and a 4096² map could have asked
+/// sixteen times that). A map whose lists would hold more than its share is drawn again with
+/// half the texels per side, as often as it takes: its shadows keep their strength and soften.
+/// Only where even a map of [`crate::scene::MIN_SHADOW_MAP`] texels would not fit is each
+/// texel's list cut to its longest pieces, as many as fit (`cap_within`), at least one each (at
+/// most 8 × 16² more pieces). `--explain` says which. The gallery's scenes hold at most 1.2 M
+/// (`armadillo_shadow`).
 pub const MAX_SHADOW_PIECES: usize = 1 << 23;
 
 /// Bytes of one texel record: its list start and its nearest-occluder summary.
