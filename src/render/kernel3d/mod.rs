@@ -675,6 +675,25 @@ struct TileResult {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sub_frames_capped_are_a_note_and_added_ones_are_not() {
+        let shaped = KernelStats {
+            shaped_subframes: Some(12),
+            ..KernelStats::default()
+        };
+        assert!(shaped.departures().is_empty());
+        let capped = KernelStats {
+            planned_subframes: Some(2467),
+            ..shaped
+        };
+        assert_eq!(
+            capped.departures(),
+            vec![format!(
+                "the plan's 2467 sub-frames capped at {MAX_SUBFRAMES} equal ones"
+            )]
+        );
+    }
     use crate::scene::{Camera, Keyframe, Motion, Pose};
     use crate::surfels::from_mesh;
     use crate::surfels::mesh::tests::square;

@@ -1321,6 +1321,32 @@ mod tests {
     }
 
     #[test]
+    fn each_departure_from_the_scene_is_one_note_and_routine_counts_none() {
+        let routine = TriangleStats {
+            items: 10,
+            compressed: 3,
+            dropped: 5,
+            ..TriangleStats::default()
+        };
+        assert!(routine.departures().is_empty());
+        let departed = TriangleStats {
+            too_far: 2,
+            shadow_lists: ShadowLists {
+                coarsened: Some((4096, 1024)),
+                cap: Some(40),
+                cut: 7,
+                ..ShadowLists::default()
+            },
+            ..routine
+        };
+        let notes = departed.departures();
+        assert_eq!(notes.len(), 3, "{notes:?}");
+        assert!(notes[0].starts_with("2 triangle item(s) left out"));
+        assert!(notes[1].contains("4096² texels drawn at 1024²"));
+        assert!(notes[2].contains("their 40 longest pieces") && notes[2].contains("(7 shorter"));
+    }
+
+    #[test]
     fn lists_keep_the_full_cap_up_to_four_samples_a_pixel_and_a_tiles_worth_beyond() {
         assert_eq!(list_cap(1), MAX_INTERVALS_PER_SAMPLE);
         assert_eq!(list_cap(4), MAX_INTERVALS_PER_SAMPLE);
