@@ -25,6 +25,9 @@ pub const MIN_TRAIL_DENSITY: f64 = 1e-4;
 /// Most speed lines drawn.
 pub const MAX_SPEED_LINES: u32 = 10_000;
 
+/// Most stops a colour ramp may have: a colour map of 256 entries is the usual finest.
+pub const MAX_RAMP_STOPS: usize = 1024;
+
 /// Largest side of a trail texture image, px.
 pub const MAX_TEXTURE_SIDE: u32 = 2048;
 
@@ -235,10 +238,13 @@ impl Style {
             stops, speed_range, ..
         } = &t.colour
         {
-            if stops.len() < 2 {
+            if !(2..=MAX_RAMP_STOPS).contains(&stops.len()) {
                 return Err(Error::invalid(
                     "trail.ramp",
-                    format!("has {} stop(s): a ramp needs at least two", stops.len()),
+                    format!(
+                        "has {} stop(s): a ramp has from 2 to {MAX_RAMP_STOPS}",
+                        stops.len()
+                    ),
                 ));
             }
             for (i, c) in stops.iter().enumerate() {

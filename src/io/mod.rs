@@ -7,6 +7,7 @@
 //! - [`image`]: PNG and OpenEXR output;
 //! - [`write`](mod@write): files written whole, with nothing partial left where writing failed.
 
+mod exact;
 pub mod image;
 pub mod obj;
 pub mod ply;

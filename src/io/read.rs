@@ -52,6 +52,13 @@ pub fn read_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
     }
 }
 
+/// The text of the file at `path`, read as [`read_file`] reads it: at most `max_bytes`, and
+/// UTF-8.
+pub fn read_text(path: &Path, max_bytes: u64) -> Result<String> {
+    String::from_utf8(read_file(path, max_bytes)?)
+        .map_err(|e| Error::input(path, "file", format!("not UTF-8 text: {}", e.utf8_error())))
+}
+
 /// The file at `path`, gunzipped on the fly when its name ends in `.gz`, holding no more than
 /// `max_bytes + 1` bytes in memory. A larger gzipped file is decompressed on to count its size
 /// for the message, but no further than `count_to` bytes: a small `.gz` can hold a thousand
@@ -98,9 +105,26 @@ pub(crate) fn read_bounded(path: &Path, max_bytes: u64, count_to: u64) -> Result
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::surfels::volume::tests::{gzip, workdir};
+
+    /// The message `load` gives for a file of valid `text` padded with comment lines past
+    /// `max_bytes`.
+    pub(crate) fn refusal_past_size(
+        text: &str,
+        max_bytes: u64,
+        load: impl Fn(&Path) -> Result<()>,
+    ) -> String {
+        let dir = workdir(&format!("past-{max_bytes}"));
+        let path = dir.join("large.toml");
+        let padding = "# a comment line of sixty-four bytes, repeated to fill the file\n";
+        let lines = max_bytes as usize / padding.len() + 1;
+        std::fs::write(&path, text.to_string() + &padding.repeat(lines)).unwrap();
+        let message = load(&path).unwrap_err().to_string();
+        std::fs::remove_dir_all(dir).unwrap();
+        message
+    }
 
     #[test]
     fn a_gzipped_file_past_its_bound_is_counted_only_as_far_as_asked() {

@@ -25,10 +25,18 @@ use crate::surfels::{
     from_mesh, from_point_cloud, from_volume, Budget, Colouring, Mesh, Primitive, Surfel,
 };
 
+/// Largest scene file read, bytes: room for eight objects of 10,000 keyframes each (about 1 MB
+/// apiece with a turn in each), while the TOML parsed from it stays under about half a GB (a
+/// 16 MiB file of keyframes peaked at 915 MB before it was refused for their count).
+pub const MAX_SCENE_BYTES: u64 = 8 << 20;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneSpec {
-    #[serde(default = "default_background")]
+    #[serde(
+        default = "default_background",
+        deserialize_with = "super::exact::exact"
+    )]
     background: [f64; 3],
     camera: CameraSpec,
     #[serde(default)]
@@ -62,9 +70,11 @@ fn default_background() -> [f64; 3] {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraSpec {
+    #[serde(deserialize_with = "super::exact::exact")]
     eye: [f64; 3],
+    #[serde(deserialize_with = "super::exact::exact")]
     target: [f64; 3],
-    #[serde(default = "default_up")]
+    #[serde(default = "default_up", deserialize_with = "super::exact::exact")]
     up: [f64; 3],
     fov_y: f64,
     width: u32,
@@ -112,6 +122,7 @@ struct LightingSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct LightSpec {
+    #[serde(deserialize_with = "super::exact::exact")]
     direction: [f64; 3],
     #[serde(default = "one")]
     intensity: f64,
@@ -122,7 +133,9 @@ struct LightSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SpotSpec {
+    #[serde(deserialize_with = "super::exact::exact")]
     position: [f64; 3],
+    #[serde(deserialize_with = "super::exact::exact")]
     target: [f64; 3],
     angle: f64,
     #[serde(default = "one")]
@@ -147,6 +160,7 @@ struct ObjectSpec {
 struct KeyframeSpec {
     t: f64,
     #[serde(default)]
+    #[serde(deserialize_with = "super::exact::exact")]
     translate: [f64; 3],
     rotate: Option<RotationSpec>,
     #[serde(default = "one")]
@@ -156,6 +170,7 @@ struct KeyframeSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RotationSpec {
+    #[serde(deserialize_with = "super::exact::exact")]
     axis: [f64; 3],
     degrees: f64,
 }
@@ -174,11 +189,13 @@ pub enum Shape {
     /// A rectangle in the xy plane facing +z, `size = [x, y]`.
     Quad {
         /// Side lengths along x and y.
+        #[serde(deserialize_with = "super::exact::exact")]
         size: [f64; 2],
     },
     /// An axis-aligned box, `size = [x, y, z]`.
     Box {
         /// Side lengths along x, y and z.
+        #[serde(deserialize_with = "super::exact::exact")]
         size: [f64; 3],
     },
     /// A capped cylinder along y (a rod), of `radius` and `length`.
@@ -374,10 +391,12 @@ pub struct VolumeShape {
     /// The raw file (`.gz` for gzip), relative to the scene file.
     pub path: PathBuf,
     /// Voxels along x, y and z.
+    #[serde(deserialize_with = "super::exact::exact")]
     pub dimensions: [i64; 3],
     /// Voxel type: `uint8`, `uint16`, `int16` or `float32`.
     pub voxel: String,
     /// Distance between voxel centres along x, y and z in object units (default [1, 1, 1]).
+    #[serde(default, deserialize_with = "super::exact::exact_option")]
     pub spacing: Option<[f64; 3]>,
     /// The iso-value; the surface encloses the values above it.
     pub iso: f64,
@@ -442,7 +461,7 @@ impl Scene {
     /// [`Scene::load`] with a surfel budget for the whole scene: every object's surfels are
     /// counted against it before they are made.
     pub fn load_within(path: &Path, budget: Budget) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = super::read::read_text(path, MAX_SCENE_BYTES)?;
         Scene::parse_within(&text, path, budget)
     }
 
@@ -831,6 +850,30 @@ mod tests {
         // Short numbers and other quoted words are left as the reader wrote them.
         let message = error_of(&MINIMAL.replace("width = 64", "width = 64.5"));
         assert!(message.contains("`64.5`"), "{message}");
+    }
+
+    #[test]
+    fn arrays_of_another_length_and_files_past_their_size_are_refused() {
+        // A fourth coordinate, colour channel or size was dropped without a word.
+        for (from, to) in [
+            ("eye = [0, 0, 5]", "eye = [0, 0, 5, 9]"),
+            ("eye = [0, 0, 5]", "eye = [0, 0]"),
+            ("[camera]", "background = [0, 0, 0, 1]\n[camera]"),
+            (
+                "shape = { type = \"sphere\", radius = 1.0 }",
+                "shape = { type = \"box\", size = [1, 1, 1, 1] }",
+            ),
+        ] {
+            let message = error_of(&MINIMAL.replace(from, to));
+            assert!(message.contains("invalid length"), "{to}: {message}");
+        }
+        let message = crate::io::read::tests::refusal_past_size(MINIMAL, MAX_SCENE_BYTES, |path| {
+            Scene::load(path).map(|_| ())
+        });
+        assert!(
+            message.contains("large.toml: file: larger than 8388608 bytes"),
+            "{message}"
+        );
     }
 
     #[test]

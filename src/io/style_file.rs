@@ -13,10 +13,15 @@ use crate::style::{
     MAX_TEXTURE_SIDE,
 };
 
+/// Largest style file read, bytes: a style is a page of settings (the presets are under 2 KB),
+/// and a file of megabytes of ramp stops parsed into a gigabyte of TOML values.
+pub const MAX_STYLE_BYTES: u64 = 1 << 20;
+
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct StyleSpec {
     description: Option<String>,
+    #[serde(default, deserialize_with = "super::exact::exact_option")]
     background: Option<[f64; 3]>,
     #[serde(default)]
     object: ObjectLookSpec,
@@ -32,6 +37,7 @@ struct ObjectLookSpec {
     draw: bool,
     flash: f64,
     opacity: f64,
+    #[serde(default, deserialize_with = "super::exact::exact_option")]
     colour: Option<[f64; 3]>,
 }
 
@@ -60,8 +66,10 @@ struct TrailSpec {
     density: f64,
     width: f64,
     colour: TrailColourSpec,
+    #[serde(default, deserialize_with = "super::exact::exact_list")]
     ramp: Option<Vec<[f64; 3]>>,
     ramp_by: Option<RampBy>,
+    #[serde(default, deserialize_with = "super::exact::exact_option")]
     speed_range: Option<[f64; 2]>,
     fade: f64,
     texture: TextureSpec,
@@ -161,6 +169,7 @@ struct SpeedLinesSpec {
     taper: f64,
     fade: f64,
     opacity: f64,
+    #[serde(deserialize_with = "super::exact::exact")]
     colour: [f64; 3],
 }
 
@@ -185,7 +194,7 @@ impl Default for SpeedLinesSpec {
 impl Style {
     /// Read and validate a style file; a texture image is found relative to it.
     pub fn load(path: &Path) -> Result<Style> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = super::read::read_text(path, MAX_STYLE_BYTES)?;
         Style::parse(&text, path)
     }
 
@@ -360,6 +369,7 @@ fn load_texture(image_path: &Path, style_path: &Path) -> Result<Texture> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::style::MAX_RAMP_STOPS;
 
     fn error_of(text: &str) -> String {
         Style::parse(text, Path::new("look.toml"))
@@ -404,6 +414,38 @@ mod tests {
             let expected = format!("{field}: {}: must be between 0 and 10000", 1e39);
             assert!(message.contains(&expected), "{message}");
         }
+    }
+
+    #[test]
+    fn ramps_past_their_stops_arrays_past_their_length_and_files_past_their_size_are_refused() {
+        let ramp = |stops: usize| {
+            format!(
+                "[trail]\ncolour = \"ramp\"\nramp = [{}]",
+                vec!["[0.5, 0.5, 0.5]"; stops].join(", ")
+            )
+        };
+        assert!(Style::parse(&ramp(MAX_RAMP_STOPS), Path::new("look.toml")).is_ok());
+        let message = error_of(&ramp(MAX_RAMP_STOPS + 1));
+        assert!(
+            message.contains("trail.ramp: has 1025 stop(s): a ramp has from 2 to 1024"),
+            "{message}"
+        );
+        // A fourth entry was dropped without a word.
+        for text in [
+            "background = [0, 0, 0, 5]",
+            "[trail]\ncolour = \"ramp\"\nramp = [[1, 0, 0, 9], [0, 0, 1]]",
+            "[trail]\nspeed_range = [0, 1, 2]",
+        ] {
+            let message = error_of(text);
+            assert!(message.contains("invalid length"), "{text}: {message}");
+        }
+        let message = crate::io::read::tests::refusal_past_size("", MAX_STYLE_BYTES, |path| {
+            Style::load(path).map(|_| ())
+        });
+        assert!(
+            message.contains("large.toml: file: larger than 1048576 bytes"),
+            "{message}"
+        );
     }
 
     #[test]
