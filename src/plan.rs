@@ -817,7 +817,7 @@ impl Fit {
 
 /// Worst chord deviation, longest chord and largest weight departure over probes for `k` equal
 /// pieces of [t0, t1], sampled at equal shares of each piece and at the `corners` (keyframe
-/// times) within it.
+/// times, in order) within it.
 fn measure(
     camera: &Camera,
     object: &Object,
@@ -831,18 +831,17 @@ fn measure(
     let at = |t: f64| probes_at(camera, object, probes, t);
     // Each piece starts where the one before ends.
     let mut starts = at(t0);
+    // The corners are in time order, as the pieces are: each piece takes the ones inside it
+    // from the front, and none is looked at twice.
+    let mut corners = corners.iter().copied().peekable();
     for [a, b] in pieces(t0, t1, k) {
         let ends = at(b);
+        while corners.next_if(|&t| t <= a).is_some() {}
         // Equal shares of the piece, and the keyframe corners within it, where a path bends
         // most and the deviation peaks between the equal samples.
         let shares: Vec<f64> = (1..DEVIATION_SAMPLES)
             .map(|s| s as f64 / DEVIATION_SAMPLES as f64)
-            .chain(
-                corners
-                    .iter()
-                    .filter(|&&t| t > a && t < b)
-                    .map(|&t| (t - a) / (b - a)),
-            )
+            .chain(std::iter::from_fn(|| corners.next_if(|&t| t < b)).map(|t| (t - a) / (b - a)))
             .collect();
         let inside: Vec<Vec<Option<ProbeView>>> = shares
             .iter()

@@ -675,6 +675,10 @@ struct TileResult {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::{Camera, Keyframe, Motion, Pose};
+    use crate::surfels::from_mesh;
+    use crate::surfels::mesh::tests::square;
+    use crate::Method;
 
     #[test]
     fn sub_frames_capped_are_a_note_and_added_ones_are_not() {
@@ -694,10 +698,6 @@ mod tests {
             )]
         );
     }
-    use crate::scene::{Camera, Keyframe, Motion, Pose};
-    use crate::surfels::from_mesh;
-    use crate::surfels::mesh::tests::square;
-    use crate::Method;
 
     /// Squares at several depths sliding across each other, densely sampled, so that a pixel
     /// holds more fragment ends within a sub-frame than its share of the pieces.
