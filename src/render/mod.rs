@@ -289,13 +289,16 @@ impl Stats {
     }
 
     /// Where the render departed from the scene or its plan, one short line each (triangles
-    /// left out, shadow maps fitted to their budget, sub-frames capped); the `explain` accounts
+    /// left out, shadow maps fitted to their budget, sub-frames capped, speed lines left out of
+    /// their budget); the `explain` accounts
     /// say more.
     #[must_use]
     pub fn departures(&self) -> Vec<String> {
         let mut out = self.triangles.departures();
-        if let MethodStats::Kernel3d(kernels) = &self.method {
-            out.extend(kernels.departures());
+        match &self.method {
+            MethodStats::Kernel3d(kernels) => out.extend(kernels.departures()),
+            MethodStats::Hint(hint) => out.extend(hint.departures()),
+            _ => {}
         }
         out
     }

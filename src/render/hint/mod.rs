@@ -26,7 +26,7 @@ use crate::style::{
 use crate::surfels::Surfel;
 use glam::DVec2;
 use rayon::prelude::*;
-use speed_lines::{LineLook, SpeedLine};
+use speed_lines::{LineLook, LineWork, SpeedLine};
 
 /// A trail copy's own time axis: its slot mapped onto [0, 1], uniformly weighted. A hint's trail
 /// is drawn, not exposed, so the scene's shutter shape does not weight it.
@@ -62,8 +62,10 @@ pub struct HintStats {
     pub trail_splats: usize,
     /// Trail sub-segments left out, by reason.
     pub trail_culled: Culled,
-    /// Speed lines drawn.
+    /// Speed lines made, drawn or not.
     pub speed_lines: usize,
+    /// The speed lines' work against its budget.
+    pub line_work: LineWork,
 }
 
 impl HintStats {
@@ -74,7 +76,7 @@ impl HintStats {
         format!(
             "hint: {} surfels emit trails; left out: {} back-facing and {} hidden in the object image at the flash, {} by the trail's density\n\
              \x20 {} trail splats; trail sub-segments left out: {} back-facing throughout, {} off-screen, {} behind the near plane, {} without weight\n\
-             \x20 {} speed lines\n",
+             \x20 {} speed lines{}\n",
             self.emitting,
             self.back_facing,
             self.hidden,
@@ -84,7 +86,52 @@ impl HintStats {
             c.off_screen,
             c.behind_near,
             c.degenerate,
-            self.speed_lines
+            self.speed_lines,
+            self.line_work_account(),
+        )
+    }
+
+    /// Where the render departed from its style: speed lines left out or drawn in part when
+    /// their budget of pixel tests was spent.
+    #[must_use]
+    pub fn departures(&self) -> Vec<String> {
+        let w = &self.line_work;
+        if w.left_out == 0 && !w.cut {
+            return Vec::new();
+        }
+        let drawn = self.speed_lines - w.left_out;
+        let part = if w.cut {
+            ", the last of them in part"
+        } else {
+            ""
+        };
+        vec![format!(
+            "{drawn} of {} speed lines drawn{part}: the lines' budget of {} pixel tests was spent \
+             (the lines left out are the lowest; fewer, narrower or straighter lines fit)",
+            self.speed_lines, w.budget
+        )]
+    }
+
+    /// The speed lines' pixel tests against their budget, for `--explain`.
+    fn line_work_account(&self) -> String {
+        let w = &self.line_work;
+        if self.speed_lines == 0 {
+            return String::new();
+        }
+        format!(
+            ", {} pixels tested against a segment and {} mask pixels of their budget of {} tests{}",
+            w.tests,
+            w.mask_pixels,
+            w.budget,
+            if w.left_out > 0 || w.cut {
+                format!(
+                    " ({} left out, {} drawn in part)",
+                    w.left_out,
+                    usize::from(w.cut)
+                )
+            } else {
+                String::new()
+            }
         )
     }
 }
@@ -249,7 +296,7 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             fade: look.fade,
             opacity: look.opacity,
         };
-        speed_lines::draw_over(&lines, &look, image);
+        speed_lines::draw_over(&lines, &look, image)
     };
 
     // The moving objects are drawn as `object.draw` and `object.opacity` say, the still ones
@@ -280,11 +327,11 @@ pub(super) fn render(scene: &Scene, plan: &Plan, style: &Style) -> Render {
             stats.add_raster(&raster);
             layer.draw_over(&mut image);
             drop(layer);
-            draw_lines(&mut image);
+            hint.line_work = draw_lines(&mut image);
             drawn_layer.draw_over(&mut image);
         }
         Composite::Merged => {
-            draw_lines(&mut image);
+            hint.line_work = draw_lines(&mut image);
             drawn_layer.draw_over(&mut image);
             trail_target.occluder = Some(&drawn_layer.front_depth);
             let (layer, raster) = draw_trails(&trail_footprints, &trail_target, trail);
@@ -763,6 +810,31 @@ fn scatter(mut z: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Speed lines left out of their budget are a departure, said without `--explain`; lines
+    /// within it are not.
+    #[test]
+    fn speed_lines_left_out_of_their_budget_are_said() {
+        let mut stats = HintStats {
+            speed_lines: 10,
+            ..HintStats::default()
+        };
+        assert!(stats.departures().is_empty());
+        stats.line_work = LineWork {
+            tests: 1_000,
+            mask_pixels: 10,
+            budget: 1_000,
+            left_out: 7,
+            cut: true,
+        };
+        let notes = stats.departures();
+        assert_eq!(notes.len(), 1);
+        assert!(
+            notes[0].starts_with("3 of 10 speed lines drawn, the last of them in part"),
+            "{notes:?}"
+        );
+        assert!(stats.explain().contains("(7 left out, 1 drawn in part)"));
+    }
 
     /// A point just in front of a near plane 10⁻²⁰ deep and one unit aside projects some 10²² px
     /// off screen: its cell, 10²¹ spacings out, saturated i64, and the cell beside it overflowed.
