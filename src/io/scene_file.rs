@@ -492,17 +492,22 @@ impl Scene {
 
 /// Read TOML `text` from `path` into `T`, naming the line of any syntax error or unknown key.
 pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
-    toml::from_str(text).map_err(|e| {
+    let refusal = |e: &toml::de::Error, field: String| {
         let line = e
             .span()
             .map(|s| text[..s.start].matches('\n').count() + 1)
             .unwrap_or(0);
-        Error::input(
-            path,
-            format!("line {line}"),
-            numbers_shortened(e.message().trim_end()),
-        )
-    })
+        let place = if field.is_empty() || field == "." {
+            format!("line {line}")
+        } else {
+            format!("line {line}, {field}")
+        };
+        Error::input(path, place, numbers_shortened(e.message().trim_end()))
+    };
+    let document = toml::Deserializer::parse(text).map_err(|e| refusal(&e, String::new()))?;
+    // The field's path ("speed_lines.count", "object[0].keyframe[1].t") beside its line: a type
+    // error names the value and the type, not the field.
+    serde_path_to_error::deserialize(document).map_err(|e| refusal(e.inner(), e.path().to_string()))
 }
 
 /// `message` with each number quoted in backticks that runs past 24 characters (the TOML
@@ -844,7 +849,9 @@ mod tests {
     fn a_huge_float_for_an_integer_is_shown_short() {
         let message = error_of(&MINIMAL.replace("width = 64", "width = 1e300"));
         assert!(
-            message.contains("line 6") && message.contains("`1e300`, expected u32"),
+            message.contains(
+                "line 6, camera.width: invalid type: floating point `1e300`, expected u32"
+            ),
             "{message}"
         );
         // Short numbers and other quoted words are left as the reader wrote them.

@@ -416,6 +416,30 @@ mod tests {
         }
     }
 
+    /// A value of the wrong type is refused with its field's path beside its line: the reader's
+    /// message names the value and the type only.
+    #[test]
+    fn a_value_of_the_wrong_type_names_its_field() {
+        for (text, expected) in [
+            (
+                "[speed_lines]\ndraw = true\ncount = 2.5",
+                "look.toml: line 3, speed_lines.count: invalid type: floating point `2.5`, expected u32",
+            ),
+            (
+                "[trail]\ncopies = -3",
+                "line 2, trail.copies: invalid value: integer `-3`, expected u32",
+            ),
+            (
+                "[trail]\ncolour = \"ramp\"\nramp = [[0, 0, 0], [1, 1, 1, 1]]",
+                "line 3, trail.ramp[1]: invalid length 4",
+            ),
+            ("[trail\nwidth = 2", "look.toml: line 1: unclosed table"),
+        ] {
+            let message = error_of(text);
+            assert!(message.contains(expected), "{text}: {message}");
+        }
+    }
+
     #[test]
     fn ramps_past_their_stops_arrays_past_their_length_and_files_past_their_size_are_refused() {
         let ramp = |stops: usize| {
