@@ -505,7 +505,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             out.stats.footprints as f64 / seconds
         ));
     }
-    for departure in plan.departures().iter().chain(&out.stats.departures()) {
+    for departure in plan.departures_of(&out) {
         eprintln!("note: {departure}; --explain says more");
     }
     eprintln!(
@@ -538,6 +538,11 @@ fn run_study(args: StudyArgs) -> Result<()> {
     let progress = bar(args.reference_samples as u64, "converged reference");
     let points = study::run(&scene, &options, Some(&progress))?;
     progress.finish_and_clear();
+    for point in &points {
+        for note in &point.notes {
+            eprintln!("note: {} {}: {note}", point.method, point.knob);
+        }
+    }
     write_study_csv(&points, &args.output.join("study.csv"))?;
     let title = format!(
         "{} ({}×{}, {} surfels)",
@@ -627,6 +632,15 @@ fn run_gallery(args: GalleryArgs) -> Result<()> {
             })
             .collect();
         eprintln!("{}: {}", row.name, line.join(", "));
+        for shot in &row.shots {
+            let detail = gallery::full_detail_mark(shot.full_detail);
+            for note in &shot.notes {
+                eprintln!(
+                    "note: {} {} {}{detail}: {note}",
+                    row.name, shot.method, shot.knob
+                );
+            }
+        }
     }
     eprintln!("wrote {}", args.output.join("index.html").display());
     Ok(())

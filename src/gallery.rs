@@ -63,6 +63,8 @@ pub struct Shot {
     pub seconds: f64,
     /// Error against the reference (none for the reference itself).
     pub error: Option<ImageError>,
+    /// Where the render departed from what the scene asked ([`Plan::departures_of`]).
+    pub notes: Vec<String>,
 }
 
 /// One scene's row of the gallery.
@@ -192,11 +194,11 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
                 bar.set_message(format!("{name} {} {knob}{detail}", method.name()));
             }
             let start = Instant::now();
-            let image = Plan::with_lod(&scene, &method, lod)
-                .map_err(|e| e.in_file(path, ""))?
-                .render(None)
-                .image;
+            let plan = Plan::with_lod(&scene, &method, lod).map_err(|e| e.in_file(path, ""))?;
+            let out = plan.render(None);
             let seconds = start.elapsed().as_secs_f64();
+            let notes = plan.departures_of(&out);
+            let image = out.image;
             let file = match method {
                 Method::Hint { .. } => format!("{name}-hint-{knob}.png"),
                 _ if full_detail => format!("{name}-{}-full-detail.png", method.name()),
@@ -217,6 +219,7 @@ pub fn run(options: &GalleryOptions, progress: Option<&ProgressBar>) -> Result<V
                 file,
                 seconds,
                 error,
+                notes,
             });
             if let Some(bar) = progress {
                 bar.inc(1);
@@ -275,9 +278,12 @@ fn figure(shot: &Shot, static_seconds: f64, class: &str) -> String {
         Some(e) => format!("RMSE {:.4} · ꟻLIP {:.3} vs reference", e.rmse, e.flip),
         None => "the reference".to_string(),
     };
+    let notes: String = (shot.notes.iter())
+        .map(|note| format!("<br>note: {}", escape(note)))
+        .collect();
     format!(
         "<figure class=\"{class}\"><img src=\"{file}\" alt=\"{alt}\" loading=\"lazy\">\
-         <figcaption><b>{title}</b><br>{seconds:.3} s · {ratio:.1}× static<br>{error}</figcaption></figure>\n",
+         <figcaption><b>{title}</b><br>{seconds:.3} s · {ratio:.1}× static<br>{error}{notes}</figcaption></figure>\n",
         file = url_path(&shot.file),
         alt = escape(&title),
         title = escape(&title),
@@ -418,6 +424,7 @@ mod tests {
                 file: "take #2-static.png".into(),
                 seconds: 0.1,
                 error: None,
+                notes: Vec::new(),
             }],
         };
         let html = index_html(&[row], &[], 4);
@@ -439,6 +446,7 @@ mod tests {
             file: format!("s-{method}-{knob}.png"),
             seconds,
             error,
+            notes: Vec::new(),
         };
         let row = SceneShots {
             name: "rod <spin>".into(),
@@ -451,7 +459,10 @@ mod tests {
                 shot("static", "t=mid", 0.5, Some(error)),
                 shot("blur", "τ=1px", 5.0, Some(error)),
                 shot("hint", "heat", 1.0, Some(error)),
-                shot("hint", "comet", 1.5, Some(error)),
+                Shot {
+                    notes: vec!["3 of 10 speed lines drawn: <budget>".into()],
+                    ..shot("hint", "comet", 1.5, Some(error))
+                },
                 shot("reference", "N=256", 50.0, None),
             ],
         };
@@ -468,6 +479,8 @@ mod tests {
         // Times as seconds and ratios to static, errors to 4 digits.
         assert!(pair.contains("1.500 s · 3.0× static") && pair.contains("RMSE 0.0123"));
         assert!(pair.contains("50.000 s · 100.0× static<br>the reference"));
+        // Where a render departed from its scene, its caption says so.
+        assert!(pair.contains("RMSE 0.0123 · ꟻLIP 0.045 vs reference<br>note: 3 of 10 speed lines drawn: &lt;budget&gt;</figcaption>"));
         // A scene without full-detail shots has no level-of-detail row.
         assert!(!html.contains("simplified for their screen speed"));
     }
@@ -487,6 +500,7 @@ mod tests {
             file: format!("s-{method}-{full_detail}.png"),
             seconds,
             error: Some(error),
+            notes: Vec::new(),
         };
         let row = SceneShots {
             name: "armadillo".into(),

@@ -475,6 +475,15 @@ impl<'a> Plan<'a> {
             .collect()
     }
 
+    /// Where `render`, drawn from this plan, departs from what the scene asked: the plan's
+    /// departures, then the render's ([`crate::render::Stats::departures`]).
+    #[must_use]
+    pub fn departures_of(&self, render: &Render) -> Vec<String> {
+        let mut out = self.departures();
+        out.extend(render.stats.departures());
+        out
+    }
+
     /// Human-readable account of the plan and, when given, of what rendering culled.
     #[must_use]
     pub fn explain(&self, culled: Option<&Culled>) -> String {

@@ -25,6 +25,8 @@ pub struct StudyPoint {
     pub seconds: f64,
     /// Error of the render against the converged reference.
     pub error: ImageError,
+    /// Where the render departed from what the scene asked ([`crate::plan::Plan::departures_of`]).
+    pub notes: Vec<String>,
 }
 
 /// Write an SVG plot of error against run time on log–log axes: x = seconds (median render time), y = RMSE.
@@ -592,6 +594,7 @@ mod tests {
             knob: knob.to_owned(),
             seconds,
             error: error_with_rmse(rmse),
+            notes: Vec::new(),
         }
     }
 

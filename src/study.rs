@@ -208,11 +208,15 @@ fn traced(receivers: Receivers, mark: &str) -> &str {
     }
 }
 
-/// Plan and render once, returning the image and the elapsed seconds.
-fn timed(scene: &Scene, setting: &Setting) -> Result<(Render, f64)> {
+/// Plan and render once, returning the image, the elapsed seconds and where the render departed
+/// from the scene.
+fn timed(scene: &Scene, setting: &Setting) -> Result<(Render, f64, Vec<String>)> {
     let start = Instant::now();
-    let out = Plan::with_lod(scene, &setting.method, setting.lod)?.render(None);
-    Ok((out, start.elapsed().as_secs_f64()))
+    let plan = Plan::with_lod(scene, &setting.method, setting.lod)?;
+    let out = plan.render(None);
+    let seconds = start.elapsed().as_secs_f64();
+    let notes = plan.departures_of(&out);
+    Ok((out, seconds, notes))
 }
 
 /// The median: the middle value, or the mean of the two middle values of an even count.
@@ -479,7 +483,7 @@ pub fn run(
             }
             _ => (Cow::Borrowed(scene), &reference),
         };
-        let (first, first_time) = timed(&scene, setting)?;
+        let (first, first_time, notes) = timed(&scene, setting)?;
         let mut times = vec![first_time];
         for _ in 1..options.repeats {
             times.push(timed(&scene, setting)?.1);
@@ -493,6 +497,7 @@ pub fn run(
             knob: setting.knob(),
             seconds: median(times),
             error: compare(&first.image, reference)?,
+            notes,
         });
         if let Some(bar) = progress {
             bar.inc(1);
@@ -612,6 +617,7 @@ mod tests {
                 ssim: 1.0,
                 flip: rmse,
             },
+            notes: Vec::new(),
         }
     }
 

@@ -26,6 +26,22 @@ t = 1.0
 translate = [0.5, 0, 0]
 "#;
 
+/// The arguments of a study of `scene.toml` into `out` with the fewest frames and one repeat.
+fn quick_study(out: &str) -> [&str; 10] {
+    [
+        "study",
+        "scene.toml",
+        "-o",
+        out,
+        "--reference-samples",
+        "4",
+        "--max-samples",
+        "2",
+        "--repeats",
+        "1",
+    ]
+}
+
 /// A fresh folder for one test.
 fn workdir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("streak-cli-{}-{name}", std::process::id()));
@@ -142,6 +158,47 @@ scale = 1e300
         assert!(stderr.contains(needle), "{needle:?} missing from: {stderr}");
     }
     assert!(!stderr.contains("\"ball\""), "{stderr}");
+
+    // A study and a gallery say it too, for each render that departs, by method and setting;
+    // the gallery's page under the image.
+    let study = quick_study("study");
+    std::fs::create_dir_all(dir.join("looks")).unwrap();
+    std::fs::write(dir.join("looks/plain.toml"), "").unwrap();
+    let gallery = [
+        "gallery",
+        "--scenes",
+        ".",
+        "--styles",
+        "looks",
+        "-o",
+        "gallery",
+        "--samples",
+        "2",
+    ];
+    for (args, needle) in [
+        (
+            &study[..],
+            "note: analytic τ=0.3px: 256 triangle item(s) left out",
+        ),
+        (
+            &gallery[..],
+            "note: scene analytic τ=0.1px: 256 triangle item(s) left out",
+        ),
+        (
+            &study[..],
+            "note: static t=mid: \"growing\": its path is drawn in 256",
+        ),
+    ] {
+        let out = streak(args, &dir);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(stderr.contains(needle), "{needle:?} missing from: {stderr}");
+    }
+    let page = std::fs::read_to_string(dir.join("gallery/index.html")).unwrap();
+    assert!(
+        page.contains("<br>note: 256 triangle item(s) left out"),
+        "{page}"
+    );
 }
 
 #[test]
@@ -910,21 +967,7 @@ fn a_study_says_which_points_its_plot_leaves_out() {
     let dir = workdir("still-study");
     let still = SCENE.replace("translate = [0.5, 0, 0]", "translate = [0, 0, 0]");
     std::fs::write(dir.join("scene.toml"), still).unwrap();
-    let out = streak(
-        &[
-            "study",
-            "scene.toml",
-            "-o",
-            "out",
-            "--reference-samples",
-            "4",
-            "--max-samples",
-            "2",
-            "--repeats",
-            "1",
-        ],
-        &dir,
-    );
+    let out = streak(&quick_study("out"), &dir);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("points are not plotted"), "{stderr}");
