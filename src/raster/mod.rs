@@ -1194,6 +1194,43 @@ mod tests {
         }
     }
 
+    /// A texture lit at one texel of 64², on round and turned footprints whose texture square
+    /// spans 6 to 48 px: each pixel takes the mean over the texels it covers, so the samples sum
+    /// to the weight wherever the footprint falls. Sampled at pixel centres, the lit texel was
+    /// caught or missed by chance (none of it at σ = 1 px).
+    #[test]
+    fn texture_detail_finer_than_a_pixel_keeps_its_weight() {
+        let mut values = vec![0.0; 64 * 64];
+        values[32 * 64 + 32] = 1.0;
+        let texture = Texture::new(64, 64, values).unwrap();
+        let round = [1.0, 2.0, 4.0, 8.0].map(|sigma: f64| Sym2::isotropic(sigma * sigma));
+        let turned = [1.0, 4.0, 16.0].map(|variance| Sym2 {
+            xx: variance,
+            xy: 0.85 * variance,
+            yy: variance,
+        });
+        for covariance in round.into_iter().chain(turned) {
+            let sigma = covariance.xx.sqrt();
+            for offset in 0..7 {
+                let center = DVec2::new(40.0, 30.0) + DVec2::new(0.13, 0.07) * offset as f64;
+                let mut splat = gaussian(center, covariance, 0.8, [1.0; 3], 1.0);
+                splat.profile = Profile::Texture;
+                let mut f = splat.footprint(80, 64).unwrap();
+                f.weigh_by_pixel_samples(Some(&texture));
+                let sum: f32 = (0..64)
+                    .flat_map(|y| (0..80).map(move |x| (x, y)))
+                    .map(|(x, y)| f.weight_at(x, y, Some(&texture)))
+                    .sum();
+                // The pixels' boxes tile the texture where its axes are the pixel grid's and
+                // nearly so where they are turned; the rest is f32 summing.
+                assert!(
+                    (sum / 0.8 - 1.0).abs() < 5e-3,
+                    "σ = {sigma} px at {center}: {sum} of 0.8"
+                );
+            }
+        }
+    }
+
     #[test]
     fn pixel_samples_of_a_footprint_sum_to_its_weight() {
         let f = splat(

@@ -91,11 +91,19 @@ impl Profile {
 /// A grey-level image mapped onto footprints, row-major, row 0 at the top. Across the footprint
 /// it spans ±[`CUTOFF_SIGMAS`] standard deviations on both axes and is cut to the inscribed disc
 /// like every profile; its values are scaled so that it integrates to one there.
+///
+/// Where a footprint's pixels are larger than its texels, each pixel takes the mean of the
+/// texels over its own extent, from a summed-area table: sampled at pixel centres, detail finer
+/// than a pixel was caught or missed by chance (a texture lit at one texel of 64² kept 1.4 % of
+/// its light). Where they are smaller, the image is sampled bilinearly.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
     width: u32,
     height: u32,
     values: Vec<f32>,
+    /// `(width + 1) × (height + 1)` sums of the values above and left of each texel corner, in
+    /// f64: the sums of a 2048² image differ by single texels' values.
+    sums: Vec<f64>,
     /// The largest value, its peak: what a footprint's faintness is measured against.
     peak: f32,
 }
@@ -116,6 +124,7 @@ impl Texture {
             width,
             height,
             values,
+            sums: Vec::new(),
             peak: 0.0,
         };
         // Midpoint rule on a fine grid over the cut-off square, counting only the inscribed disc.
@@ -140,7 +149,23 @@ impl Texture {
             *v *= scale;
         }
         texture.peak = texture.values.iter().fold(0.0, |a: f32, &v| a.max(v));
+        let (w, h) = (width as usize, height as usize);
+        let mut sums = vec![0.0; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut row = 0.0;
+            for x in 0..w {
+                row += f64::from(texture.values[y * w + x]);
+                sums[(y + 1) * (w + 1) + x + 1] = sums[y * (w + 1) + x + 1] + row;
+            }
+        }
+        texture.sums = sums;
         Some(texture)
+    }
+
+    /// Texels per unit coordinate, along x and y.
+    fn texels_per_unit(&self) -> [f32; 2] {
+        let per_unit = 0.5 / CUTOFF_SIGMAS as f32;
+        [self.width as f32 * per_unit, self.height as f32 * per_unit]
     }
 
     /// Bilinear sample at unit coordinates (u right, v down), zero outside the image.
@@ -162,6 +187,38 @@ impl Texture {
         };
         let top = texel(x0, y0) * (1.0 - fx) + texel(x0 + 1.0, y0) * fx;
         let bottom = texel(x0, y0 + 1.0) * (1.0 - fx) + texel(x0 + 1.0, y0 + 1.0) * fx;
+        top * (1.0 - fy) + bottom * fy
+    }
+
+    /// The mean of the image, taken as constant over each texel and zero outside, over the box
+    /// centred at unit coordinates (u, v) that reaches `reach` texels either way on each axis.
+    fn box_mean(&self, u: f32, v: f32, reach: [f32; 2]) -> f32 {
+        let [per_x, per_y] = self.texels_per_unit().map(f64::from);
+        let x = (f64::from(u) + CUTOFF_SIGMAS) * per_x;
+        let y = (f64::from(v) + CUTOFF_SIGMAS) * per_y;
+        let [rx, ry] = reach.map(f64::from);
+        let sum =
+            self.sum_to(x + rx, y + ry) - self.sum_to(x - rx, y + ry) - self.sum_to(x + rx, y - ry)
+                + self.sum_to(x - rx, y - ry);
+        (sum / (4.0 * rx * ry)) as f32
+    }
+
+    /// The integral of the image (constant over each texel) over x' < x, y' < y, in texels: the
+    /// summed-area table interpolated bilinearly, which is exact for such an image.
+    fn sum_to(&self, x: f64, y: f64) -> f64 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        // NaN clamps to neither end; the caller's reach is finite and positive.
+        let x = x.clamp(0.0, w as f64);
+        let y = y.clamp(0.0, h as f64);
+        // Whole numbers within 0..=w and 0..=h.
+        let (x0, y0) = (
+            (x.floor() as usize).min(w.saturating_sub(1)),
+            (y.floor() as usize).min(h.saturating_sub(1)),
+        );
+        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+        let at = |i: usize, j: usize| self.sums[j * (w + 1) + i];
+        let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
+        let bottom = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
         top * (1.0 - fy) + bottom * fy
     }
 }
@@ -224,7 +281,10 @@ enum SamplerKind<'a> {
     Gaussian(&'static GaussianTable),
     Disc,
     Ring,
-    Texture(&'a Texture),
+    /// A texture, sampled bilinearly where the footprint's pixels are smaller than its texels,
+    /// and averaged over each pixel's reach in texels (half its extent on each axis, at least
+    /// half a texel) where they are larger.
+    Texture(&'a Texture, Option<[f32; 2]>),
     /// A texture profile with no texture given: draws nothing.
     Blank,
 }
@@ -251,10 +311,19 @@ impl<'a> Sampler<'a> {
             (Profile::Texture, None) => untextured(SamplerKind::Blank),
             (Profile::Texture, Some(texture)) => {
                 let [along, across] = texture_frame(conic.map(f64::from), motion);
+                let (along, across) = (along.as_vec2().to_array(), across.as_vec2().to_array());
+                // The extent, in texels, of the box a pixel covers in the texture on each axis.
+                let [per_x, per_y] = texture.texels_per_unit();
+                let extent = [
+                    (along[0].abs() + along[1].abs()) * per_x,
+                    (across[0].abs() + across[1].abs()) * per_y,
+                ];
+                let reach = (extent[0] > 1.0 || extent[1] > 1.0)
+                    .then(|| extent.map(|e| 0.5 * larger(e, 1.0)));
                 Sampler {
-                    kind: SamplerKind::Texture(texture),
-                    along: along.as_vec2().to_array(),
-                    across: across.as_vec2().to_array(),
+                    kind: SamplerKind::Texture(texture, reach),
+                    along,
+                    across,
                 }
             }
         }
@@ -264,7 +333,7 @@ impl<'a> Sampler<'a> {
     /// to integrate to one.
     pub(super) fn peak(&self) -> f32 {
         match self.kind {
-            SamplerKind::Texture(texture) => texture.peak,
+            SamplerKind::Texture(texture, _) => texture.peak,
             _ => 1.0,
         }
     }
@@ -281,12 +350,14 @@ impl<'a> Sampler<'a> {
                 let r = q.sqrt();
                 ramp(r - RING_RADII[0]).min(ramp(RING_RADII[1] - r))
             }
-            SamplerKind::Texture(texture) => {
+            SamplerKind::Texture(texture, reach) => {
                 let (along, across) = (self.along, self.across);
-                texture.sample(
-                    along[0] * dx + along[1] * dy,
-                    across[0] * dx + across[1] * dy,
-                )
+                let u = along[0] * dx + along[1] * dy;
+                let v = across[0] * dx + across[1] * dy;
+                match reach {
+                    None => texture.sample(u, v),
+                    Some(reach) => texture.box_mean(u, v, reach),
+                }
             }
             SamplerKind::Blank => 0.0,
         }
