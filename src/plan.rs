@@ -789,8 +789,12 @@ fn pieces_within(
     k: usize,
     range: std::ops::Range<usize>,
 ) -> impl Iterator<Item = [f64; 2]> {
-    let at = move |i: usize| t0 + (t1 - t0) * i as f64 / k as f64;
-    range.map(move |i| [at(i), at(i + 1)])
+    range.map(move |i| [piece_end(t0, t1, k, i), piece_end(t0, t1, k, i + 1)])
+}
+
+/// Where piece `i` of [t0, t1] cut into `k` equal pieces starts (and piece `i − 1` ends).
+fn piece_end(t0: f64, t1: f64, k: usize, i: usize) -> f64 {
+    t0 + (t1 - t0) * i as f64 / k as f64
 }
 
 /// Distance of `p` from the segment a–b.
@@ -861,7 +865,7 @@ fn measure(
     let run = |first: usize, last: usize| {
         // The corners inside the run's pieces, as each piece takes them: after its start, before
         // its end.
-        let [start, end] = [first, last].map(|i| t0 + (t1 - t0) * i as f64 / k as f64);
+        let [start, end] = [first, last].map(|i| piece_end(t0, t1, k, i));
         let from = corners.partition_point(|&t| t <= start);
         let to = corners.partition_point(|&t| t < end);
         let run = Run {

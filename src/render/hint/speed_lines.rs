@@ -157,11 +157,10 @@ fn strokes(
     let Some(style) = Style::new(look).filter(|_| !lines.is_empty()) else {
         return (Strokes::transparent(0, 0), work);
     };
-    let layer = Strokes::transparent(width, height);
+    let mut layer = Strokes::transparent(width, height);
     if layer.pixels.is_empty() {
         return (layer, work);
     }
-    let mut layer = layer;
     let brightest = (lines.iter().flat_map(|line| line.colour))
         .filter(|c| c.is_finite())
         .fold(1.0, f32::max);
