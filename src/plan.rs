@@ -77,6 +77,12 @@ const DEVIATION_SAMPLES: usize = 8;
 pub enum ObjectMotion {
     /// Does not move while the shutter is open: the static path.
     Still,
+    /// Moves, but the method draws it only at instants (`static`, each `reference` frame), which
+    /// need no sub-segments: none are planned, and its path is measured for `--explain` only.
+    Instants {
+        /// Longest screen path of a probed point, px.
+        path_px: f64,
+    },
     /// Moves: linear sub-segments [t0, t1] covering the shutter interval.
     Moving {
         /// Sub-segments [t0, t1] in time order.
@@ -236,17 +242,19 @@ impl<'a> Plan<'a> {
             .iter()
             .zip(&moving)
             .map(|(object, &moves)| {
-                let motion = if moves {
-                    plan_motion(
+                let motion = match (moves, draws_instants(method)) {
+                    (false, _) => ObjectMotion::Still,
+                    (true, true) => ObjectMotion::Instants {
+                        path_px: path_at_keyframes_px(&scene.camera, object, [open, close]),
+                    },
+                    (true, false) => plan_motion(
                         &scene.camera,
                         object,
                         [open, close],
                         (tolerance_px, length_per_tolerance),
                         max_segments,
                         Drawn::by(method, &scene.shutter, &scene.lighting, object),
-                    )
-                } else {
-                    ObjectMotion::Still
+                    ),
                 };
                 let (mesh_lod, resampled) = mesh_lod(scene, object, moves, method, lod)?;
                 let surfels = resampled.as_deref().map_or(object.surfels(), Vec::as_slice);
@@ -440,7 +448,9 @@ impl<'a> Plan<'a> {
         self.objects
             .iter()
             .filter_map(|o| match o.motion {
-                ObjectMotion::Moving { path_px, .. } => Some(path_px),
+                ObjectMotion::Moving { path_px, .. } | ObjectMotion::Instants { path_px } => {
+                    Some(path_px)
+                }
                 ObjectMotion::Still => None,
             })
             .fold(0.0, f64::max)
@@ -495,51 +505,53 @@ impl<'a> Plan<'a> {
         };
         line(format!("plan (tolerance {} px):", self.tolerance_px));
         for (index, o) in self.objects.iter().enumerate() {
-            match &o.motion {
-                ObjectMotion::Still => {
-                    line(format!(
-                        "  {:?}: {} surfels, still while the shutter is open: static path, no motion ellipses, projected once for all reference frames",
-                        o.name, o.surfels
-                    ));
-                    line(format!("    {}", o.lod.outcome.explain()));
-                    for mesh in self.mesh_lines(index) {
-                        line(format!("    {mesh}"));
+            let header = match &o.motion {
+                ObjectMotion::Still => "still while the shutter is open: static path, no motion ellipses, projected once for all reference frames".to_string(),
+                ObjectMotion::Instants { path_px } => format!(
+                    "moving: screen path up to {path_px:.1} px, {}: no sub-segments planned (only methods that draw the whole exposure need them)",
+                    match self.method {
+                        Method::Static { .. } => "drawn at one instant",
+                        _ => "drawn at each of the reference's frames",
                     }
-                }
+                ),
                 ObjectMotion::Moving {
                     segments,
                     path_px,
                     deviation_px,
                     longest_segment_px,
-                    capped,
-                    uncapped_streaks,
-                } => {
-                    line(format!(
-                        "  {:?}: {} surfels, moving: screen path up to {path_px:.1} px, {} linear sub-segment{} (chord deviation ≤ {deviation_px:.2} px, longest {longest_segment_px:.1} px)",
-                        o.name,
-                        o.surfels,
-                        segments.len(),
-                        if segments.len() == 1 { "" } else { "s" },
-                    ));
-                    line(format!("    {}", o.lod.outcome.explain()));
-                    for mesh in self.mesh_lines(index) {
-                        line(format!("    {mesh}"));
-                    }
-                    if *uncapped_streaks {
-                        line(format!(
-                            "    streaks as long as the path allows (otherwise at most {SEGMENT_LENGTH_PER_TOLERANCE} tolerances): it does not turn, no spot light shades it, and its surfels' size on screen changes by less than the tolerance"
-                        ));
-                    }
-                    match capped {
-                        Some(SegmentCap::PerInterval) => line(format!(
-                            "    capped at {MAX_SEGMENTS_PER_INTERVAL} sub-segments per keyframe interval: the tolerance does not hold"
-                        )),
-                        Some(SegmentCap::Footprints(n)) => line(format!(
-                            "    capped at {n} equal sub-segments over the exposure, the object's share of {MAX_MOTION_FOOTPRINTS} motion footprints for the scene: the tolerance does not hold"
-                        )),
-                        None => {}
-                    }
-                }
+                    ..
+                } => format!(
+                    "moving: screen path up to {path_px:.1} px, {} linear sub-segment{} (chord deviation ≤ {deviation_px:.2} px, longest {longest_segment_px:.1} px)",
+                    segments.len(),
+                    if segments.len() == 1 { "" } else { "s" },
+                ),
+            };
+            line(format!("  {:?}: {} surfels, {header}", o.name, o.surfels));
+            line(format!("    {}", o.lod.outcome.explain()));
+            for mesh in self.mesh_lines(index) {
+                line(format!("    {mesh}"));
+            }
+            let ObjectMotion::Moving {
+                capped,
+                uncapped_streaks,
+                ..
+            } = &o.motion
+            else {
+                continue;
+            };
+            if *uncapped_streaks {
+                line(format!(
+                    "    streaks as long as the path allows (otherwise at most {SEGMENT_LENGTH_PER_TOLERANCE} tolerances): it does not turn, no spot light shades it, and its surfels' size on screen changes by less than the tolerance"
+                ));
+            }
+            match capped {
+                Some(SegmentCap::PerInterval) => line(format!(
+                    "    capped at {MAX_SEGMENTS_PER_INTERVAL} sub-segments per keyframe interval: the tolerance does not hold"
+                )),
+                Some(SegmentCap::Footprints(n)) => line(format!(
+                    "    capped at {n} equal sub-segments over the exposure, the object's share of {MAX_MOTION_FOOTPRINTS} motion footprints for the scene: the tolerance does not hold"
+                )),
+                None => {}
             }
         }
         line(if self.lit {
@@ -595,6 +607,12 @@ impl Drawn {
             Drawn::Ellipses => fit.deviation,
         }
     }
+}
+
+/// Whether `method` draws only instants (`static`, and each `reference` frame), so that a moving
+/// object needs no sub-segments.
+fn draws_instants(method: &Method) -> bool {
+    matches!(method, Method::Static { .. } | Method::Reference { .. })
 }
 
 /// Whether `method` draws `object` as triangles.
@@ -662,7 +680,8 @@ fn object_lod(
             Cells::Square,
             &culled_at,
         ),
-        (Method::Reference { .. }, ObjectMotion::Moving { .. }) => lod::merge(
+        (Method::Reference { .. }, ObjectMotion::Moving { .. })
+        | (_, ObjectMotion::Instants { .. }) => lod::merge(
             camera,
             object,
             surfels,
@@ -997,8 +1016,7 @@ fn plan_motion(
     max_segments: usize,
     drawn: Drawn,
 ) -> ObjectMotion {
-    let stride = object.surfels().len().div_ceil(PROBES).max(1);
-    let probes: Vec<usize> = (0..object.surfels().len()).step_by(stride).collect();
+    let probes = probes_of(object);
     let mut breaks: Vec<f64> = vec![open];
     breaks.extend(object.motion.breaks_within(open, close));
     breaks.push(close);
@@ -1083,21 +1101,13 @@ fn plan_motion(
             .then_some(SegmentCap::Footprints(max_segments));
         uncapped_streaks = false;
     }
-    // Each probe's screen path, summed over short chords in time order.
     let samples = 4 * segments.len().max(16);
-    let mut paths = vec![0.0f64; probes.len()];
-    let mut previous = probes_at(camera, object, &probes, open);
-    for i in 1..=samples {
-        let t = open + (close - open) * i as f64 / samples as f64;
-        let next = probes_at(camera, object, &probes, t);
-        for (path, (a, b)) in paths.iter_mut().zip(previous.iter().zip(&next)) {
-            if let (Some(a), Some(b)) = (a, b) {
-                *path += a.screen.distance(b.screen);
-            }
-        }
-        previous = next;
-    }
-    let path_px = paths.into_iter().fold(0.0, f64::max);
+    let path_px = longest_probe_path_px(
+        camera,
+        object,
+        &probes,
+        (0..=samples).map(|i| open + (close - open) * i as f64 / samples as f64),
+    );
     ObjectMotion::Moving {
         segments,
         path_px,
@@ -1106,6 +1116,57 @@ fn plan_motion(
         capped,
         uncapped_streaks,
     }
+}
+
+/// Surfels probed to measure an object's screen paths: [`PROBES`] spread over its surfels.
+fn probes_of(object: &Object) -> Vec<usize> {
+    let stride = object.surfels().len().div_ceil(PROBES).max(1);
+    (0..object.surfels().len()).step_by(stride).collect()
+}
+
+/// The longest screen path of a probe, summed over chords between consecutive `times` (in
+/// order), px.
+fn longest_probe_path_px(
+    camera: &Camera,
+    object: &Object,
+    probes: &[usize],
+    mut times: impl Iterator<Item = f64>,
+) -> f64 {
+    let mut paths = vec![0.0f64; probes.len()];
+    let Some(first) = times.next() else {
+        return 0.0;
+    };
+    let mut previous = probes_at(camera, object, probes, first);
+    for t in times {
+        let next = probes_at(camera, object, probes, t);
+        for (path, (a, b)) in paths.iter_mut().zip(previous.iter().zip(&next)) {
+            if let (Some(a), Some(b)) = (a, b) {
+                *path += a.screen.distance(b.screen);
+            }
+        }
+        previous = next;
+    }
+    paths.into_iter().fold(0.0, f64::max)
+}
+
+/// The longest screen path of `object`'s probes over [open, close] for a method that draws
+/// instants: chords between its keyframes, each cut in four, and at least 64 in all (at most
+/// 4 × [`crate::scene::motion::MAX_KEYFRAMES`] + 4 instants).
+fn path_at_keyframes_px(camera: &Camera, object: &Object, [open, close]: [f64; 2]) -> f64 {
+    let mut ends = vec![open];
+    ends.extend(object.motion.breaks_within(open, close));
+    ends.push(close);
+    let cuts = (64 / (ends.len() - 1)).max(4);
+    let times = ends.windows(2).flat_map(|pair| {
+        let [t0, t1] = [pair[0], pair[1]];
+        (0..cuts).map(move |i| t0 + (t1 - t0) * i as f64 / cuts as f64)
+    });
+    longest_probe_path_px(
+        camera,
+        object,
+        &probes_of(object),
+        times.chain(std::iter::once(close)),
+    )
 }
 
 /// What a moving mesh's level of detail depends on besides its method: the mesh, and how it is
@@ -1246,12 +1307,9 @@ mod tests {
     use crate::surfels::from_mesh;
     use crate::surfels::mesh::tests::square;
 
-    /// Equal pieces measured in parallel runs give the fit of one run over them all, to the bit:
-    /// a square zig-zagging through 40 keyframes, cut into 10,007 pieces (three runs, the last
-    /// short), with its keyframe corners inside them.
-    #[test]
-    fn pieces_measured_in_parallel_runs_fit_as_in_one() {
-        let camera = Camera::new(
+    /// A 64 × 48 image looking down −z at the origin from z = 10.
+    fn camera_10_units_away() -> Camera {
+        Camera::new(
             DVec3::new(0.0, 0.0, 10.0),
             DVec3::ZERO,
             DVec3::Y,
@@ -1259,7 +1317,15 @@ mod tests {
             64,
             48,
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    /// Equal pieces measured in parallel runs give the fit of one run over them all, to the bit:
+    /// a square zig-zagging through 40 keyframes, cut into 10,007 pieces (three runs, the last
+    /// short), with its keyframe corners inside them.
+    #[test]
+    fn pieces_measured_in_parallel_runs_fit_as_in_one() {
+        let camera = camera_10_units_away();
         let keyframes = (0..40)
             .map(|i| Keyframe {
                 t: f64::from(i) / 39.0,
@@ -1299,5 +1365,45 @@ mod tests {
         };
         assert_eq!(bits(parallel), bits(serial));
         assert!(serial.deviation > 0.0 && serial.longest > 0.0, "{serial:?}");
+    }
+
+    /// `static` and `reference` draw instants, so they plan no sub-segments however many
+    /// keyframes there are, and still measure the path through every keyframe: a square
+    /// zig-zagging 1,000 times between x = ±1 in the plane 10 units in front of the eye has a
+    /// screen path of 1,000 legs of 2 f / 10 px (f the focal length in px), to rounding. The
+    /// same motion under `blur` is cut at every keyframe.
+    #[test]
+    fn instants_plan_no_sub_segments_and_measure_the_path_through_every_keyframe() {
+        let camera = camera_10_units_away();
+        let legs = 1000;
+        let keyframes = (0..=legs)
+            .map(|i| Keyframe {
+                t: f64::from(i) / f64::from(legs),
+                pose: Pose {
+                    translation: DVec3::new(if i % 2 == 0 { -1.0 } else { 1.0 }, 0.0, 0.0),
+                    ..Pose::IDENTITY
+                },
+            })
+            .collect();
+        let surfels = from_mesh(&square(1.0), 25, false).unwrap();
+        let object = Object::new("zigzag", surfels, Motion::new(keyframes).unwrap());
+        let expected = f64::from(legs) * 2.0 * camera.focal_px / 10.0;
+        let scene = Scene::new(camera).with_object(object);
+        for method in [Method::STATIC, Method::Reference { samples: 16 }] {
+            let plan = Plan::new(&scene, &method).unwrap();
+            let ObjectMotion::Instants { path_px } = plan.objects[0].motion else {
+                panic!("{method:?} planned {:?}", plan.objects[0].motion);
+            };
+            assert!(
+                (path_px - expected).abs() <= 1e-9 * expected,
+                "{path_px} px against {expected}"
+            );
+            assert!(plan.explain(None).contains("no sub-segments planned"));
+        }
+        let blur = Plan::new(&scene, &Method::BLUR).unwrap();
+        let ObjectMotion::Moving { segments, .. } = &blur.objects[0].motion else {
+            panic!("blur planned {:?}", blur.objects[0].motion);
+        };
+        assert!(segments.len() >= legs as usize);
     }
 }

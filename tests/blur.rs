@@ -89,14 +89,15 @@ fn a_streak_is_as_long_as_a_straight_path_unless_its_shape_may_change_along_it()
     let (scene, exact) = translating_scene();
     let planned = |scene: &streak::Scene| {
         let plan = streak::Plan::new(scene, &Method::BLUR).unwrap();
-        match &plan.objects[0].motion {
-            streak::plan::ObjectMotion::Moving {
-                segments,
-                uncapped_streaks,
-                ..
-            } => (segments.len(), *uncapped_streaks),
-            streak::plan::ObjectMotion::Still => panic!("the splat moves"),
-        }
+        let streak::plan::ObjectMotion::Moving {
+            segments,
+            uncapped_streaks,
+            ..
+        } = &plan.objects[0].motion
+        else {
+            panic!("blur plans the splat's sub-segments");
+        };
+        (segments.len(), *uncapped_streaks)
     };
     let segments = |scene: &streak::Scene| planned(scene).0;
     assert_eq!(segments(&scene), 1);

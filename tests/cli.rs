@@ -186,13 +186,27 @@ scale = 1e300
         ),
         (
             &study[..],
-            "note: static t=mid: \"growing\": its path is drawn in 256",
+            "note: blur τ=1px: \"growing\": its path is drawn in 256",
         ),
     ] {
         let out = streak(args, &dir);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{stderr}");
         assert!(stderr.contains(needle), "{needle:?} missing from: {stderr}");
+        // `static` and the reference draw instants, not the path: none of their paths is capped.
+        assert!(
+            !stderr.lines().any(|line| (line.starts_with("note: static")
+                || line.starts_with("note: reference"))
+                && line.contains("its path is drawn")),
+            "{stderr}"
+        );
+        // `static` and the reference draw instants, not the path: none of their paths is capped.
+        assert!(
+            !stderr.lines().any(|line| (line.starts_with("note: static")
+                || line.starts_with("note: reference"))
+                && line.contains("its path is drawn")),
+            "{stderr}"
+        );
     }
     let page = std::fs::read_to_string(dir.join("gallery/index.html")).unwrap();
     assert!(
@@ -596,6 +610,13 @@ fn assert_fails_with(out: &Output, needles: &[&str]) {
     assert!(!stderr.contains("panicked"), "{stderr}");
     for needle in needles {
         assert!(stderr.contains(needle), "{needle:?} missing from: {stderr}");
+        // `static` and the reference draw instants, not the path: none of their paths is capped.
+        assert!(
+            !stderr.lines().any(|line| (line.starts_with("note: static")
+                || line.starts_with("note: reference"))
+                && line.contains("its path is drawn")),
+            "{stderr}"
+        );
     }
 }
 

@@ -70,7 +70,7 @@ fn footprint_bound(method: Kind, plan: &Plan, samples: usize) -> usize {
         .objects
         .iter()
         .map(|o| match &o.motion {
-            ObjectMotion::Still => o.surfels,
+            ObjectMotion::Still | ObjectMotion::Instants { .. } => o.surfels,
             ObjectMotion::Moving { segments, .. } => o.surfels * segments.len(),
         })
         .sum();

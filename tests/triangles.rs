@@ -1035,3 +1035,52 @@ fn a_receiver_turning_to_face_the_light_takes_its_depth_bias_at_each_time() {
         );
     }
 }
+
+#[test]
+fn every_method_and_tolerance_sees_the_same_shadow_map() {
+    // A bar from 0.5 to 3 units off the z axis turns about it from 20° to 150° under a shadowed
+    // light from above: its extent in y peaks at 90°, between the keyframes, where sub-segment
+    // ends fall differently for each tolerance. The light's camera bounds the scene, not a
+    // method's plan of it, so `static`, each `reference` frame and `analytic` at any tolerance
+    // look the shadow map up on one texel grid.
+    let bar = Mesh {
+        positions: vec![
+            DVec3::new(0.5, -0.1, 0.0),
+            DVec3::new(3.0, -0.1, 0.0),
+            DVec3::new(3.0, 0.1, 0.0),
+            DVec3::new(0.5, 0.1, 0.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    let turned = |degrees: f64| Pose {
+        rotation: DQuat::from_rotation_z(degrees.to_radians()),
+        ..Pose::IDENTITY
+    };
+    let object = object(
+        "bar",
+        &bar,
+        [0.8; 3],
+        &[(0.0, turned(20.0)), (1.0, turned(150.0))],
+    );
+    let scene = lit(
+        scene(32, 1).with_object(object),
+        0.2,
+        DVec3::new(0.2, 0.3, 1.0),
+        0.8,
+    );
+    let cameras = |method: Method| Plan::new(&scene, &method).unwrap().shadow_cameras;
+    let analytic = |tolerance_px| Method::Analytic {
+        tolerance_px,
+        receivers: Receivers::Sampled,
+    };
+    let seen = cameras(analytic(0.05));
+    assert_eq!(seen.len(), 1);
+    for method in [
+        Method::STATIC,
+        Method::Reference { samples: 16 },
+        analytic(1.0),
+        analytic(4.0),
+    ] {
+        assert!(cameras(method.clone()) == seen, "{method:?}");
+    }
+}

@@ -420,6 +420,9 @@ impl<'a> Prepared<'a> {
                 (Exposure::Shutter, ObjectMotion::Moving { segments, .. }) => {
                     segments.iter().map(|&s| (s, s)).collect()
                 }
+                // A plan for instants draws no exposure; were it asked to, one chord over the
+                // shutter is its coarsest reading.
+                (Exposure::Shutter, ObjectMotion::Instants { .. }) => vec![(shutter, shutter)],
             };
             let corners_at = |t: f64| {
                 let to_view = camera_ref.view * object.motion.pose_at(t).to_affine();
