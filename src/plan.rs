@@ -14,7 +14,9 @@ use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
 use crate::render::triangles::shadow::{light_camera, MAX_SHADOWED_LIGHTS};
-use crate::render::{render_planned, trail_window, Method, Progress, Render, MAX_TRIANGLE_ITEMS};
+use crate::render::{
+    render_planned, trail_window, Method, Progress, Render, MAX_SUBFRAMES, MAX_TRIANGLE_ITEMS,
+};
 use crate::scene::camera::Camera;
 use crate::scene::motion::Motion;
 use crate::scene::shutter::{Shutter, ShutterShape};
@@ -109,6 +111,9 @@ pub enum SegmentCap {
     /// The object reached its share of [`MAX_MOTION_FOOTPRINTS`]: this many equal sub-segments
     /// over the exposure, whatever its keyframes.
     Footprints(usize),
+    /// `kernel3d` reached the [`MAX_SUBFRAMES`] sub-frames it draws, fewer than the object's
+    /// share of the footprints: that many equal sub-segments over the exposure.
+    SubFrames,
 }
 
 /// The plan for one object.
@@ -233,10 +238,18 @@ impl<'a> Plan<'a> {
             ShutterShape::Box => SEGMENT_LENGTH_PER_TOLERANCE,
             ShutterShape::Tent | ShutterShape::Gaussian => SHAPED_SEGMENT_LENGTH_PER_TOLERANCE,
         };
-        let max_segments = MAX_MOTION_FOOTPRINTS
+        let share = MAX_MOTION_FOOTPRINTS
             .checked_div(moving_surfels)
             .unwrap_or(MAX_MOTION_FOOTPRINTS)
             .max(1);
+        // `kernel3d` draws at most MAX_SUBFRAMES sub-frames, equal ones past that: more
+        // sub-segments would only be measured (671,088 of a zig-zag took 20 s).
+        let most_segments = match method {
+            Method::Kernel3d { .. } if MAX_SUBFRAMES < share => {
+                (MAX_SUBFRAMES, SegmentCap::SubFrames)
+            }
+            _ => (share, SegmentCap::Footprints(share)),
+        };
         let objects = scene
             .objects
             .iter()
@@ -252,7 +265,7 @@ impl<'a> Plan<'a> {
                         object,
                         [open, close],
                         (tolerance_px, length_per_tolerance),
-                        max_segments,
+                        most_segments,
                         Drawn::by(method, &scene.shutter, &scene.lighting, object),
                     ),
                 };
@@ -475,6 +488,9 @@ impl<'a> Plan<'a> {
                         SegmentCap::Footprints(n) => format!(
                             "{n} equal sub-segments, its share of the scene's {MAX_MOTION_FOOTPRINTS} motion footprints"
                         ),
+                        SegmentCap::SubFrames => format!(
+                            "{MAX_SUBFRAMES} equal sub-segments, the most sub-frames kernel3d draws"
+                        ),
                     };
                     Some(format!(
                         "{:?}: its path is drawn in {cap}, fewer than the tolerance of {} px asks for",
@@ -550,6 +566,9 @@ impl<'a> Plan<'a> {
                 )),
                 Some(SegmentCap::Footprints(n)) => line(format!(
                     "    capped at {n} equal sub-segments over the exposure, the object's share of {MAX_MOTION_FOOTPRINTS} motion footprints for the scene: the tolerance does not hold"
+                )),
+                Some(SegmentCap::SubFrames) => line(format!(
+                    "    capped at {MAX_SUBFRAMES} equal sub-segments over the exposure, the most sub-frames kernel3d draws: the tolerance does not hold"
                 )),
                 None => {}
             }
@@ -999,8 +1018,8 @@ fn measure_run(
 }
 
 /// The sub-segments of `object`'s motion over [open, close], within `tolerance_px` unless more
-/// than `max_segments` would be needed: then `max_segments` equal ones, marked capped unless they
-/// hold the tolerance themselves. How they
+/// than `max_segments` would be needed: then `max_segments` equal ones, marked capped by `cap`
+/// unless they hold the tolerance themselves. How they
 /// are `drawn` decides the error ([`Drawn::error`]): triangles' corners move uniformly along
 /// camera-space chords, so a point's error is its distance from where the chord puts it at the
 /// same time, and neither a chord's length nor a splat's weight bends anything; an exact streak
@@ -1013,7 +1032,7 @@ fn plan_motion(
     object: &Object,
     [open, close]: [f64; 2],
     (tolerance_px, length_per_tolerance): (f64, f64),
-    max_segments: usize,
+    (max_segments, cap): (usize, SegmentCap),
     drawn: Drawn,
 ) -> ObjectMotion {
     let probes = probes_of(object);
@@ -1077,7 +1096,10 @@ fn plan_motion(
         longest_segment_px = longest_segment_px.max(fit.longest);
         segments.extend(pieces(t0, t1, k));
     }
-    if segments.len() > max_segments {
+    // Equal pieces over the exposure cut corners at the keyframes they straddle; so would a
+    // path summed over equal steps.
+    let equal_pieces = segments.len() > max_segments;
+    if equal_pieces {
         segments = pieces(open, close, max_segments).collect();
         // Equal pieces straddle keyframes, whose corners are measured too.
         let corners = &breaks[1..breaks.len() - 1];
@@ -1097,17 +1119,20 @@ fn plan_motion(
         // their size changes along an equal piece by more than the tolerance.
         let free = uncapped_streaks && fit.size_change <= tolerance_px;
         let (max_length, max_weight) = limits(free);
-        capped = (!fit.holds(tolerance_px, max_length, max_weight))
-            .then_some(SegmentCap::Footprints(max_segments));
+        capped = (!fit.holds(tolerance_px, max_length, max_weight)).then_some(cap);
         uncapped_streaks = false;
     }
     let samples = 4 * segments.len().max(16);
-    let path_px = longest_probe_path_px(
-        camera,
-        object,
-        &probes,
-        (0..=samples).map(|i| open + (close - open) * i as f64 / samples as f64),
-    );
+    let path_px = if equal_pieces {
+        path_at_keyframes_px(camera, object, [open, close])
+    } else {
+        longest_probe_path_px(
+            camera,
+            object,
+            &probes,
+            (0..=samples).map(|i| open + (close - open) * i as f64 / samples as f64),
+        )
+    };
     ObjectMotion::Moving {
         segments,
         path_px,
