@@ -15,7 +15,8 @@ use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
 use crate::render::triangles::shadow::{light_camera, MAX_SHADOWED_LIGHTS};
 use crate::render::{
-    render_planned, trail_window, Method, Progress, Render, MAX_SUBFRAMES, MAX_TRIANGLE_ITEMS,
+    render_planned, trail_window, Method, Progress, Render, Subframes, MAX_SUBFRAMES,
+    MAX_TRIANGLE_ITEMS,
 };
 use crate::scene::camera::Camera;
 use crate::scene::motion::Motion;
@@ -260,14 +261,24 @@ impl<'a> Plan<'a> {
                     (true, true) => ObjectMotion::Instants {
                         path_px: path_at_keyframes_px(&scene.camera, object, [open, close]),
                     },
-                    (true, false) => plan_motion(
-                        &scene.camera,
-                        object,
-                        [open, close],
-                        (tolerance_px, length_per_tolerance),
-                        most_segments,
-                        Drawn::by(method, &scene.shutter, &scene.lighting, object),
-                    ),
+                    (true, false) => {
+                        let mut motion = plan_motion(
+                            &scene.camera,
+                            object,
+                            [open, close],
+                            (tolerance_px, length_per_tolerance),
+                            most_segments,
+                            Drawn::by(method, &scene.shutter, &scene.lighting, object),
+                        );
+                        // Equal sub-frames are drawn, not the sub-segments, which only sample
+                        // the path for the level of detail: no tolerance was asked of them.
+                        if let (Some(_), ObjectMotion::Moving { capped, .. }) =
+                            (equal_subframes(method), &mut motion)
+                        {
+                            *capped = None;
+                        }
+                        motion
+                    }
                 };
                 let (mesh_lod, resampled) = mesh_lod(scene, object, moves, method, lod)?;
                 let surfels = resampled.as_deref().map_or(object.surfels(), Vec::as_slice);
@@ -555,6 +566,11 @@ impl<'a> Plan<'a> {
             else {
                 continue;
             };
+            if let Some(n) = equal_subframes(&self.method) {
+                line(format!(
+                    "    {n} equal sub-frames drawn; the sub-segments only sample the path for the level of detail"
+                ));
+            }
             if *uncapped_streaks {
                 line(format!(
                     "    streaks as long as the path allows (otherwise at most {SEGMENT_LENGTH_PER_TOLERANCE} tolerances): it does not turn, no spot light shades it, and its surfels' size on screen changes by less than the tolerance"
@@ -625,6 +641,17 @@ impl Drawn {
             Drawn::Streaks { .. } => fit.uniform,
             Drawn::Ellipses => fit.deviation,
         }
+    }
+}
+
+/// The count of `kernel3d`'s equal sub-frames, when it draws those rather than the plan's.
+fn equal_subframes(method: &Method) -> Option<usize> {
+    match method {
+        Method::Kernel3d {
+            subframes: Subframes::Equal(n),
+            ..
+        } => Some(*n),
+        _ => None,
     }
 }
 
@@ -1174,8 +1201,9 @@ fn longest_probe_path_px(
     paths.into_iter().fold(0.0, f64::max)
 }
 
-/// The longest screen path of `object`'s probes over [open, close] for a method that draws
-/// instants: chords between its keyframes, each cut in four, and at least 64 in all (at most
+/// The longest screen path of `object`'s probes over [open, close] through its keyframes (for
+/// the methods that draw instants, and where equal pieces replace its sub-segments): chords
+/// between keyframes, each interval cut in four, and at least 64 in all (at most
 /// 4 × [`crate::scene::motion::MAX_KEYFRAMES`] + 4 instants).
 fn path_at_keyframes_px(camera: &Camera, object: &Object, [open, close]: [f64; 2]) -> f64 {
     let mut ends = vec![open];
