@@ -54,7 +54,7 @@ pub const TURN_EPSILON: f64 = 1e-6;
 /// Most keyframes one object may have. The plan measures the motion over every interval between
 /// keyframes, and each interval may be cut into sub-segments and drawn: a 25-surfel square
 /// through 10,000 keyframes (`tests/data/worst-cases/zigzag-10000-keyframes.toml.gz`, 64 × 48)
-/// takes 0.06 s with `static`, 0.5 s with `blur` and 26 s with a hint whose ring-shaped trail
+/// takes 0.06 s with `static`, 0.5 s with `blur` and 16 s with a hint whose ring-shaped trail
 /// is drawn as motion ellipses, the square's share of the 2²⁴ of them.
 pub const MAX_KEYFRAMES: usize = 10_000;
 
