@@ -259,7 +259,12 @@ impl<'a> Plan<'a> {
                 let motion = match (moves, draws_instants(method)) {
                     (false, _) => ObjectMotion::Still,
                     (true, true) => ObjectMotion::Instants {
-                        path_px: path_at_keyframes_px(&scene.camera, object, [open, close]),
+                        path_px: path_through_keyframes_px(
+                            &scene.camera,
+                            object,
+                            &probes_of(object),
+                            &object.motion.keyframe_ends(open, close),
+                        ),
                     },
                     (true, false) => {
                         let mut motion = plan_motion(
@@ -1063,9 +1068,7 @@ fn plan_motion(
     drawn: Drawn,
 ) -> ObjectMotion {
     let probes = probes_of(object);
-    let mut breaks: Vec<f64> = vec![open];
-    breaks.extend(object.motion.breaks_within(open, close));
-    breaks.push(close);
+    let breaks = object.motion.keyframe_ends(open, close);
 
     let (mut segments, mut deviation_px, mut longest_segment_px, mut capped) =
         (Vec::new(), 0.0f64, 0.0f64, None);
@@ -1151,7 +1154,7 @@ fn plan_motion(
     }
     let samples = 4 * segments.len().max(16);
     let path_px = if equal_pieces {
-        path_at_keyframes_px(camera, object, [open, close])
+        path_through_keyframes_px(camera, object, &probes, &breaks)
     } else {
         longest_probe_path_px(
             camera,
@@ -1201,25 +1204,22 @@ fn longest_probe_path_px(
     paths.into_iter().fold(0.0, f64::max)
 }
 
-/// The longest screen path of `object`'s probes over [open, close] through its keyframes (for
-/// the methods that draw instants, and where equal pieces replace its sub-segments): chords
+/// The longest screen path of `probes` through the keyframe `ends` ([`Motion::keyframe_ends`];
+/// for the methods that draw instants, and where equal pieces replace the sub-segments): chords
 /// between keyframes, each interval cut in four, and at least 64 in all (at most
 /// 4 × [`crate::scene::motion::MAX_KEYFRAMES`] + 4 instants).
-fn path_at_keyframes_px(camera: &Camera, object: &Object, [open, close]: [f64; 2]) -> f64 {
-    let mut ends = vec![open];
-    ends.extend(object.motion.breaks_within(open, close));
-    ends.push(close);
+fn path_through_keyframes_px(
+    camera: &Camera,
+    object: &Object,
+    probes: &[usize],
+    ends: &[f64],
+) -> f64 {
     let cuts = (64 / (ends.len() - 1)).max(4);
     let times = ends.windows(2).flat_map(|pair| {
         let [t0, t1] = [pair[0], pair[1]];
         (0..cuts).map(move |i| t0 + (t1 - t0) * i as f64 / cuts as f64)
     });
-    longest_probe_path_px(
-        camera,
-        object,
-        &probes_of(object),
-        times.chain(std::iter::once(close)),
-    )
+    longest_probe_path_px(camera, object, probes, times.chain(ends.last().copied()))
 }
 
 /// What a moving mesh's level of detail depends on besides its method: the mesh, and how it is

@@ -1178,12 +1178,7 @@ mod tests {
                     let center = DVec2::new(20.0, 30.0) + DVec2::new(0.13, 0.07) * offset as f64;
                     let mut splat = gaussian(center, covariance, 0.8, [1.0; 3], 1.0);
                     splat.profile = profile;
-                    let mut f = splat.footprint(64, 64).unwrap();
-                    f.weigh_by_pixel_samples(Some(&texture));
-                    let sum: f32 = (0..64)
-                        .flat_map(|y| (0..64).map(move |x| (x, y)))
-                        .map(|(x, y)| f.weight_at(x, y, Some(&texture)))
-                        .sum();
+                    let sum = summed_weight(&splat, [64, 64], &texture);
                     // f32 sums of a few dozen samples.
                     assert!(
                         (sum - 0.8).abs() < 1e-5,
@@ -1192,6 +1187,17 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The weights of `splat`'s footprint in a `width` × `height` image, each pixel weighed by
+    /// its own samples of `texture`, summed.
+    fn summed_weight(splat: &ScreenSplat, [width, height]: [u32; 2], texture: &Texture) -> f32 {
+        let mut f = splat.footprint(width, height).unwrap();
+        f.weigh_by_pixel_samples(Some(texture));
+        (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| f.weight_at(x, y, Some(texture)))
+            .sum()
     }
 
     /// A texture lit at one texel of 64², on round and turned footprints whose texture square
@@ -1215,12 +1221,7 @@ mod tests {
                 let center = DVec2::new(40.0, 30.0) + DVec2::new(0.13, 0.07) * offset as f64;
                 let mut splat = gaussian(center, covariance, 0.8, [1.0; 3], 1.0);
                 splat.profile = Profile::Texture;
-                let mut f = splat.footprint(80, 64).unwrap();
-                f.weigh_by_pixel_samples(Some(&texture));
-                let sum: f32 = (0..64)
-                    .flat_map(|y| (0..80).map(move |x| (x, y)))
-                    .map(|(x, y)| f.weight_at(x, y, Some(&texture)))
-                    .sum();
+                let sum = summed_weight(&splat, [80, 64], &texture);
                 // The pixels' boxes tile the texture where its axes are the pixel grid's and
                 // nearly so where they are turned; the rest is f32 summing.
                 assert!(

@@ -207,6 +207,16 @@ impl Motion {
             .any(|t| differs(self.pose_at(t)))
     }
 
+    /// t0, the keyframe times strictly inside (t0, t1), and t1: the ends of the pieces between
+    /// which the pose changes smoothly.
+    #[must_use]
+    pub fn keyframe_ends(&self, t0: f64, t1: f64) -> Vec<f64> {
+        let mut ends = vec![t0];
+        ends.extend(self.breaks_within(t0, t1));
+        ends.push(t1);
+        ends
+    }
+
     /// Keyframe times strictly inside (t0, t1): the points where a path may bend sharply.
     pub fn breaks_within(&self, t0: f64, t1: f64) -> impl Iterator<Item = f64> + '_ {
         self.keyframes_from(t0, |t| t < t1).iter().map(|k| k.t)

@@ -21,7 +21,7 @@ use super::intervals::Interval;
 use crate::error::{Error, Result};
 use crate::math::floor_to_i64;
 use crate::plan::Plan;
-use crate::scene::{Camera, LightSource, Scene, Shutter};
+use crate::scene::{Camera, LightSource, Motion, Scene, Shutter};
 
 /// Depth bias against self-shadowing, in texel widths at the receiver's depth, times
 /// 1 + tan of the angle between the receiver's normal and the light (capped at
@@ -185,22 +185,10 @@ fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
             continue;
         };
         let motion = &object.motion;
-        let mut keys = vec![open];
-        keys.extend(motion.breaks_within(open, close));
-        keys.push(close);
-        let mut times = vec![scene.shutter.middle()];
-        for pair in keys.windows(2) {
-            let [t0, t1] = [pair[0], pair[1]];
-            let turn = (motion.pose_at(t0).rotation).angle_between(motion.pose_at(t1).rotation);
-            let steps = (turn / BOUND_TURN_STEP).ceil().max(1.0);
-            if steps * mesh.positions.len() as f64 > BOUND_VERTEX_POSES as f64 {
-                times.clear();
-                break;
-            }
-            times.extend((0..steps as usize).map(|i| t0 + (t1 - t0) * i as f64 / steps));
-        }
-        if !times.is_empty() && times.len() * mesh.positions.len() <= BOUND_VERTEX_POSES {
-            times.push(close);
+        let keys = motion.keyframe_ends(open, close);
+        let most_poses = BOUND_VERTEX_POSES / mesh.positions.len().max(1);
+        if let Some(mut times) = bound_times(motion, &keys, most_poses) {
+            times.push(scene.shutter.middle());
             for t in times {
                 let pose = motion.pose_at(t).to_affine();
                 for &p in &mesh.positions {
@@ -229,6 +217,25 @@ fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
         return (DVec3::ZERO, 1.0);
     }
     (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-9))
+}
+
+/// The keyframe `ends` and every [`BOUND_TURN_STEP`] of a turn between them, unless that is more
+/// than `most` instants.
+fn bound_times(motion: &Motion, ends: &[f64], most: usize) -> Option<Vec<f64>> {
+    let rotations: Vec<_> = ends.iter().map(|&t| motion.pose_at(t).rotation).collect();
+    let mut times = Vec::new();
+    for (pair, turn) in ends.windows(2).zip(rotations.windows(2)) {
+        let [t0, t1] = [pair[0], pair[1]];
+        let steps = (turn[0].angle_between(turn[1]) / BOUND_TURN_STEP)
+            .ceil()
+            .max(1.0);
+        if times.len() as f64 + steps >= most as f64 {
+            return None;
+        }
+        times.extend((0..steps as usize).map(|i| t0 + (t1 - t0) * i as f64 / steps));
+    }
+    times.extend(ends.last());
+    Some(times)
 }
 
 /// Largest turn between the poses at which a turning object's extent is taken, radians (1°): a
