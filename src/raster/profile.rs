@@ -340,7 +340,7 @@ impl<'a> Sampler<'a> {
 
     /// The profile's value (before the amplitude) at pixel offset `d` with squared Mahalanobis
     /// radius `q` (already within the cut-off).
-    #[inline]
+    #[inline(always)]
     pub(super) fn value(&self, [dx, dy]: [f32; 2], q: f32) -> f32 {
         let ramp = |x: f32| (x / EDGE_WIDTH + 0.5).clamp(0.0, 1.0);
         match self.kind {
@@ -350,16 +350,21 @@ impl<'a> Sampler<'a> {
                 let r = q.sqrt();
                 ramp(r - RING_RADII[0]).min(ramp(RING_RADII[1] - r))
             }
-            SamplerKind::Texture(texture, reach) => {
-                let (along, across) = (self.along, self.across);
-                let u = along[0] * dx + along[1] * dy;
-                let v = across[0] * dx + across[1] * dy;
-                match reach {
-                    None => texture.sample(u, v),
-                    Some(reach) => texture.box_mean(u, v, reach),
-                }
-            }
+            SamplerKind::Texture(texture, reach) => self.textured(texture, reach, [dx, dy]),
             SamplerKind::Blank => 0.0,
+        }
+    }
+
+    /// The texture's value at pixel offset `d`. Kept out of line so that [`Sampler::value`]
+    /// stays small enough to inline into the pixel loop, where the Gaussian is the usual case.
+    #[inline(never)]
+    fn textured(&self, texture: &Texture, reach: Option<[f32; 2]>, [dx, dy]: [f32; 2]) -> f32 {
+        let (along, across) = (self.along, self.across);
+        let u = along[0] * dx + along[1] * dy;
+        let v = across[0] * dx + across[1] * dy;
+        match reach {
+            None => texture.sample(u, v),
+            Some(reach) => texture.box_mean(u, v, reach),
         }
     }
 }
