@@ -379,6 +379,59 @@ fn a_still_floor_under_a_sliding_occluder_is_lit_for_the_closed_form_time() {
 }
 
 #[test]
+fn at_an_instant_only_tiles_a_shadow_may_reach_look_up_their_shadow_map() {
+    // A 48 × 48 image (tiles of 16 px) of a still floor at z = 0, and a still black square of
+    // side 0.4 at height 1 over the origin, lit from (1, 0, 1): the square's shadow falls on
+    // x, y in [−1.2, −0.8] × [−0.2, 0.2], in the middle row's first tile, while the square
+    // itself is seen in its second. No other tile's samples can read a texel the square
+    // reaches, and they look up nothing.
+    let s = lit(scene(48, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
+        .with_object(object(
+            "floor",
+            &square(8.0),
+            [1.0; 3],
+            &[(0.0, at(0.0, 0.0, 0.0))],
+        ))
+        .with_object(object(
+            "occluder",
+            &square(0.4),
+            [0.0; 3],
+            &[(0.0, at(0.0, 0.0, 1.0))],
+        ));
+    let lit_value = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
+    // 3.53 units across 48 px: x = −1.0 at px 10.4, x = 1.2 at px 40.3.
+    for method in [Method::STATIC, Method::Reference { samples: 4 }] {
+        let out = render(&s, &method);
+        let shadowed = pixel(&out.image, 10, 24);
+        let lit = pixel(&out.image, 40, 24);
+        assert!(
+            (f64::from(shadowed[0]) - 0.2).abs() < 1e-6,
+            "{method:?} {shadowed:?}"
+        );
+        assert!(
+            (f64::from(lit[0]) - lit_value).abs() < 1e-6,
+            "{method:?} {lit:?}"
+        );
+        // One lookup per sample, made only in those two tiles of 16 × 16 samples (the
+        // square's own samples there may be left out too: it cannot shadow itself); each
+        // frame alike.
+        let frames = match method {
+            Method::Reference { samples } => samples,
+            _ => 1,
+        };
+        let stats = out.stats.triangles;
+        assert_eq!(
+            stats.shadow_lookups + stats.shadow_lookups_left_out,
+            48 * 48 * frames
+        );
+        assert!(
+            stats.shadow_lookups > 0 && stats.shadow_lookups <= 2 * 16 * 16 * frames,
+            "{stats:?}"
+        );
+    }
+}
+
+#[test]
 fn a_face_turning_away_from_the_light_is_lit_while_it_faces_it() {
     // A square turning about y from −80° to 80° (normal (sin θ, 0, cos θ)) under light from −x:
     // N·L = −sin θ, positive for the first half (Palmér eq. 2.5). At its centre, on the axis,

@@ -150,6 +150,12 @@ pub struct TriangleStats {
     /// Of those, pieces whose receiver swept shadow-map texels and was point-sampled for a
     /// shadow that may start or end (the rest are shaded exactly, or lit for sure).
     pub point_sampled: usize,
+    /// Shadow-map lookups at an instant (`static`, each `reference` frame): one per lit sample
+    /// and shadow map, made.
+    pub shadow_lookups: usize,
+    /// Of the same, left out: the sample's tile reads nothing in that map but its own
+    /// triangle's occluders ([`Prepared::casters_seen`]), so it is lit.
+    pub shadow_lookups_left_out: usize,
     /// Spatial samples per pixel.
     pub spatial_samples: u32,
     /// Tiles of the shadow maps (every light's, every frame's).
@@ -209,6 +215,12 @@ impl TriangleStats {
                 ));
             }
         }
+        if self.shadow_lookups + self.shadow_lookups_left_out > 0 {
+            out.push_str(&format!(
+                "  shadow lookups at an instant: {} made, {} left out (the sample's tile reads nothing in that map but its own triangle's occluders)\n",
+                self.shadow_lookups, self.shadow_lookups_left_out
+            ));
+        }
         if self.intervals > 0 {
             out.push_str(&format!(
                 "  analytic visibility: {} intervals, at most {} on one sample (cap {}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped; {} item × sample pairs left out unsolved, wholly behind a still triangle covering the sample all along\n",
@@ -258,6 +270,8 @@ impl TriangleStats {
         self.joined += other.joined;
         self.dropped += other.dropped;
         self.hidden_behind_still += other.hidden_behind_still;
+        self.shadow_lookups += other.shadow_lookups;
+        self.shadow_lookups_left_out += other.shadow_lookups_left_out;
         self.pieces += other.pieces;
         self.runs += other.runs;
         self.joined_runs += other.joined_runs;
@@ -383,7 +397,7 @@ pub fn draw(plan: &Plan, exposure: Exposure) -> TriangleImage {
             let map = ShadowMap::new(shadow_occluders(plan, camera, exposure, budget));
             match exposure {
                 Exposure::Shutter => map.summarised(),
-                Exposure::Instant(_) => map,
+                Exposure::Instant(_) => map.summarised_by_tile(),
             }
         })
         .collect();
@@ -688,6 +702,11 @@ impl<'a> Prepared<'a> {
         let grid = SampleGrid::new(bounds, offsets);
         scratch.tile.clear(self.items.len());
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
+        // At an instant the tile's items are kept only to learn which shadow maps shadow none of
+        // them, so that their samples look up no shadow there.
+        let instant_shadowed =
+            matches!(self.exposure, Exposure::Instant(_)) && !self.shadows.is_empty();
+        let shared = cut_later || instant_shadowed;
         let rays = self.corner_rays(bounds);
         let mut depth_bounds = [f64::INFINITY, f64::NEG_INFINITY];
         // Still items first: where one covers a sample all along, a later item lying wholly
@@ -701,7 +720,7 @@ impl<'a> Prepared<'a> {
                     continue;
                 }
                 let placed = self.triangle(item);
-                if cut_later {
+                if shared {
                     let bounds @ [near, far] = depth_bounds_within(&placed.triangle, rays);
                     depth_bounds = [depth_bounds[0].min(near), depth_bounds[1].max(far)];
                     scratch.tile.push(TileItem {
@@ -709,7 +728,7 @@ impl<'a> Prepared<'a> {
                         depth: placed.depth,
                         bounds,
                         unshadowed: [false; MAX_SHADOWED_LIGHTS],
-                        plain: item.plain.then(|| {
+                        plain: (cut_later && item.plain).then(|| {
                             let normals = self.world_normals(item, [1.0 / 3.0; 3]);
                             PlainFace {
                                 normals,
@@ -722,7 +741,7 @@ impl<'a> Prepared<'a> {
                 self.cover_samples(index, &placed, &grid, depth, scratch, stats);
             }
         }
-        if cut_later {
+        if shared {
             let casters = self.casters_seen(rays, depth_bounds);
             for entry in &mut scratch.tile.entries {
                 let own = self.shadow_id(&self.items[entry.index as usize]);

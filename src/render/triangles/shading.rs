@@ -141,7 +141,15 @@ impl Prepared<'_> {
                 Some((depth, index)) => {
                     let item = &self.items[index as usize];
                     let t = self.segment(item).time[0];
-                    (self.shade(item, &self.corners(item), d, 0.0, t), depth)
+                    let unshadowed = scratch.tile.unshadowed(index);
+                    if self.scene.lighting.is_lit() {
+                        let left_out = unshadowed.iter().take(self.shadows.len());
+                        let left_out = left_out.filter(|&&u| u).count();
+                        stats.shadow_lookups_left_out += left_out;
+                        stats.shadow_lookups += self.shadows.len() - left_out;
+                    }
+                    let colour = self.shade(item, &self.corners(item), d, (0.0, t), unshadowed);
+                    (colour, depth)
                 }
                 None => (background, f64::INFINITY),
             },
@@ -596,7 +604,8 @@ impl Prepared<'_> {
         if weight > 0.0 {
             sum.map(|c| c / weight)
         } else {
-            self.shade(item, &triangle, d, fraction(span[0]), span[0])
+            let unshadowed = tile.unshadowed(piece.item);
+            self.shade(item, &triangle, d, (fraction(span[0]), span[0]), unshadowed)
         }
     }
 
@@ -796,8 +805,16 @@ impl Prepared<'_> {
 
     /// The colour the ray `d` sees on `item` at segment fraction `s` (time `t`), in the shadows
     /// of that instant: corner colours and normals interpolated perspective-correctly, Lambert
-    /// shading.
-    fn shade(&self, item: &Item, triangle: &MovingTriangle, d: DVec3, s: f64, t: f64) -> [f64; 3] {
+    /// shading. The shadow maps `unshadowed` marks (they hold nothing but the item's own
+    /// occluders where its tile's samples can look) are not looked up: they leave it lit.
+    fn shade(
+        &self,
+        item: &Item,
+        triangle: &MovingTriangle,
+        d: DVec3,
+        (s, t): (f64, f64),
+        unshadowed: [bool; MAX_SHADOWED_LIGHTS],
+    ) -> [f64; 3] {
         if !self.scene.lighting.is_lit() {
             return self.albedo(item, triangle, d, s);
         }
@@ -808,8 +825,10 @@ impl Prepared<'_> {
         } = self.surface_point(item, triangle, d, s);
         let own = self.shadow_id(item);
         let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
-        for (v, map) in visibility.iter_mut().zip(&self.shadows) {
-            *v = map.visibility(p, normal, t, own);
+        for ((v, map), unshadowed) in visibility.iter_mut().zip(&self.shadows).zip(unshadowed) {
+            if !unshadowed {
+                *v = map.visibility(p, normal, t, own);
+            }
         }
         let irradiance = self.irradiance(normal, p, &visibility);
         albedo.map(|c| c * irradiance)

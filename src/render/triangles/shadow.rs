@@ -462,7 +462,7 @@ impl ShadowMap {
     /// The map with each texel's and each tile's nearest occluders over all time, which the
     /// lit-for-sure tests read (texel records only in tiles that hold occluders). Over a shutter
     /// only: at an instant receivers look up their visibility alone, and a reference frame would
-    /// pay for records it never reads.
+    /// pay for records it never reads ([`ShadowMap::summarised_by_tile`] instead).
     #[must_use]
     pub fn summarised(mut self) -> ShadowMap {
         let nearest: Vec<Vec<Nearest>> = self
@@ -481,6 +481,18 @@ impl ShadowMap {
             .map(|texels| texels.iter().copied().fold(Nearest::NONE, Nearest::merge))
             .collect();
         self.nearest = nearest;
+        self
+    }
+
+    /// The map with each tile's nearest occluders, which [`ShadowMap::casters_around`] reads,
+    /// and no texel records: a map of an instant, whose receivers look up their visibility one
+    /// by one, learns only where a whole image tile's lookups would find nothing but their own
+    /// occluders, for the cost of one pass over its occluders.
+    #[must_use]
+    pub fn summarised_by_tile(mut self) -> ShadowMap {
+        self.nearest_in_tile = (self.occluders.tiles.par_iter())
+            .map(|(_, list)| Nearest::of(list))
+            .collect();
         self
     }
 
@@ -609,8 +621,8 @@ impl ShadowMap {
         span: [f64; 2],
         own: (u32, u32),
     ) -> bool {
-        // Not summarised (a map of an instant): nothing is known for sure.
-        if self.nearest_in_tile.is_empty() || !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
+        // Without texel records (a map of an instant): nothing is known for sure.
+        if self.nearest.is_empty() || !(a.distance(b) <= MAX_SURELY_LIT_TEXELS) {
             return false;
         }
         let limit = limit_a.max(limit_b);
@@ -1167,6 +1179,33 @@ mod tests {
         let mut behind = hull([20.0, 20.0, 28.0, 28.0]);
         behind[0].z = 1.0;
         assert!(map.casters_around(&behind).is_none());
+        // A map of an instant, summarised by tile alone, finds the same casters in every hull,
+        // and without texel records says of no receiver that it is lit for sure.
+        let by_tile = ShadowMap::new(Occluders {
+            camera: map.occluders.camera.clone(),
+            tiles: map.occluders.tiles.clone(),
+            left_empty: 3,
+            left_out: 3,
+            lists: ShadowLists::default(),
+        })
+        .summarised_by_tile();
+        let ids = [NO_TRIANGLE, (0, 0), (1, 0)];
+        for texels in [
+            [20.0, 20.0, 28.0, 28.0],
+            [16.2, 2.0, 30.0, 14.0],
+            [2.0, 16.1, 14.0, 30.0],
+            [15.5, 2.0, 30.0, 14.0],
+            [2.0, 2.0, 14.0, 14.0],
+        ] {
+            let seen = |map: &ShadowMap| {
+                let casters = map.casters_around(&hull(texels)).unwrap();
+                ids.map(|id| casters.none_but(id))
+            };
+            assert_eq!(seen(&by_tile), seen(&map), "{texels:?}");
+        }
+        let beside = point(&by_tile, 20.5, 20.5);
+        assert!(!by_tile.surely_lit(&receiver([beside, beside], [0.0, 1.0], (0, 0))));
+        assert!(map.surely_lit(&receiver([beside, beside], [0.0, 1.0], (0, 0))));
     }
 
     #[test]
