@@ -40,11 +40,13 @@ pub const MAX_TRIANGLE_ITEMS: usize = 1 << 24;
 /// Most intervals one sample's list keeps, an image sample's or a shadow-map texel's (about
 /// 40 kB): past it the list is resolved to its visible pieces (Gribel's compression); when that
 /// leaves less than [`LIST_SLACK`] free, each triangle's consecutive pieces are joined into one
-/// line; and only then are the shortest pieces dropped, down to that slack (all counted). A dense
-/// mesh moving fast fills many: the armadillo's 100,000 triangles sliding 90 px at 320 × 240 peak
-/// at 554 on one sample, and at a cap of 256 its samples dropped 902,734 pieces, RMSE against the
-/// reference 2.7·10⁻³ (1.2·10⁻⁴ with none dropped). In a shadow map a dropped piece is a shadow
-/// missing for its time; what the texels keep together is bounded by [`MAX_SHADOW_PIECES`].
+/// line; and only then do the shortest pieces go, down to that slack (all counted), each one's
+/// time given to a kept piece it adjoins ([`absorb_shortest`]), so that a surface covering the
+/// sample all along keeps covering it. A dense mesh moving fast fills many: the armadillo's
+/// 100,000 triangles sliding 90 px at 320 × 240 peak at 554 on one sample, and at a cap of 256
+/// its samples dropped 902,734 pieces, RMSE against the reference 2.7·10⁻³ (1.2·10⁻⁴ with none
+/// dropped). In a shadow map a dropped piece is a shadow missing for its time; what the texels
+/// keep together is bounded by [`MAX_SHADOW_PIECES`].
 pub const MAX_INTERVALS_PER_SAMPLE: usize = 1024;
 
 /// Most intervals a tile's lists keep together (40 MiB, per worker thread): a tile with more
@@ -135,8 +137,11 @@ pub struct TriangleStats {
     pub compressed: usize,
     /// Times a resolved list was still full and each item's pieces were joined into one line.
     pub joined: usize,
-    /// Intervals dropped because a list was still full after compression.
+    /// Intervals that went because a list was still full after compression, their time left
+    /// to what lies behind.
     pub dropped: usize,
+    /// Intervals that went so, their time given to a kept piece they adjoined.
+    pub absorbed: usize,
     /// Samples a triangle item was left out of unsolved: it lies wholly deeper there than a
     /// still triangle covering the sample all along.
     pub hidden_behind_still: usize,
@@ -223,8 +228,8 @@ impl TriangleStats {
         }
         if self.intervals > 0 {
             out.push_str(&format!(
-                "  analytic visibility: {} intervals, at most {} on one sample (cap {}); {} lists compressed, {} of them joined to one line per triangle, {} intervals dropped; {} item × sample pairs left out unsolved, wholly behind a still triangle covering the sample all along\n",
-                self.intervals, self.peak_per_sample, list_cap(self.spatial_samples as usize), self.compressed, self.joined, self.dropped, self.hidden_behind_still
+                "  analytic visibility: {} intervals, at most {} on one sample (cap {}); {} lists compressed, {} of them joined to one line per triangle, {} short pieces given to the piece they adjoin in time and {} dropped; {} item × sample pairs left out unsolved, wholly behind a still triangle covering the sample all along\n",
+                self.intervals, self.peak_per_sample, list_cap(self.spatial_samples as usize), self.compressed, self.joined, self.absorbed, self.dropped, self.hidden_behind_still
             ));
             out.push_str(&format!(
                 "  shading: {} visible pieces in {} runs of one triangle ({} runs of several sub-segments shaded as one), {} pieces point-sampled in shadow-map time (dynamic receivers that may be shadowed)\n",
@@ -256,7 +261,24 @@ impl TriangleStats {
                 lists.cut
             )
         });
-        [too_far, coarsened, cut].into_iter().flatten().collect()
+        let full_texels = (lists.dropped > 0).then(|| {
+            format!(
+                "shadow-map texel lists full at their cap: {} short occluder pieces went (shadows that short may be missing)",
+                lists.dropped
+            )
+        });
+        let full = (self.absorbed + self.dropped > 0).then(|| {
+            format!(
+                "sample lists full at their cap of {}: {} short visible pieces given to the piece they adjoin in time (drawn as that surface), {} dropped (their time shows what lies behind)",
+                list_cap(self.spatial_samples as usize),
+                self.absorbed,
+                self.dropped
+            )
+        });
+        [too_far, coarsened, cut, full_texels, full]
+            .into_iter()
+            .flatten()
+            .collect()
     }
 
     /// Add another render's counts (the reference's frames).
@@ -269,6 +291,7 @@ impl TriangleStats {
         self.compressed += other.compressed;
         self.joined += other.joined;
         self.dropped += other.dropped;
+        self.absorbed += other.absorbed;
         self.hidden_behind_still += other.hidden_behind_still;
         self.shadow_lookups += other.shadow_lookups;
         self.shadow_lookups_left_out += other.shadow_lookups_left_out;
@@ -1209,7 +1232,6 @@ impl Scratch {
         stats: &mut TriangleStats,
     ) {
         let room = self.list_cap - list_slack(self.list_cap);
-        let mut crowded = false;
         if self.lists[sample].len() >= self.list_cap {
             stats.compressed += 1;
             self.visible.clear();
@@ -1236,27 +1258,87 @@ impl Scratch {
                     joins
                 });
             }
-            crowded = list.len() > room;
+            if list.len() >= room {
+                // Still nearly full: the shortest visible pieces go, down to the slack with the
+                // new interval, their time to the pieces they adjoin. The new interval stays: it
+                // is not resolved yet, and its time may be no one else's.
+                let before = list.len();
+                let absorbed = absorb_shortest(list, room - 1, &mut self.by_length);
+                stats.absorbed += absorbed;
+                stats.dropped += before - list.len() - absorbed;
+            }
         }
         let list = &mut self.lists[sample];
         list.push(interval);
         stats.intervals += 1;
-        if crowded {
-            // Still nearly full: the shortest pieces go, the new interval among them, down to
-            // the slack.
-            stats.dropped += list.len() - room;
-            drop_shortest(list, room, &mut self.by_length);
-        }
         stats.peak_per_sample = stats.peak_per_sample.max(list.len());
     }
 }
 
-/// Keep the `keep` longest intervals of `list` (ties to the earlier), in their order: the list
-/// holds visible pieces, and the shortest show the least.
-fn drop_shortest(list: &mut Vec<Interval>, keep: usize, longest_first: &mut Vec<(f64, u32)>) {
-    let kept = longest(list, keep, longest_first);
-    let mut flags = kept.iter();
-    list.retain(|_| *flags.next().expect("one flag per interval"));
+/// How far apart in time (of the frame) two pieces' ends may lie and still adjoin: the roots that
+/// end one face's coverage and start the next one's are solved apart, and round apart.
+const ADJOINING: f64 = 1e-9;
+
+/// Keep the `keep` longest of `list`'s visible pieces (in time order; ties to the earlier), each
+/// one that goes handing its time to a kept piece it adjoins: within a run of pieces back to back
+/// in time, to the kept piece before it, or at the run's start to the first one after, that
+/// piece's depth then the line between the two ends; a run holding none of the longest keeps its
+/// own longest. A surface that covered the sample all along still covers it, drawn there as its
+/// neighbour's triangle; only a piece with no neighbour in time leaves its time to what lies
+/// behind. Returns how many went so (the others that went were dropped); a few more than `keep`
+/// may stay, one per run that held none of the longest.
+fn absorb_shortest(
+    list: &mut Vec<Interval>,
+    keep: usize,
+    longest_first: &mut Vec<(f64, u32)>,
+) -> usize {
+    let mut kept = longest(list, keep, longest_first);
+    let mut out = Vec::with_capacity(keep + 1);
+    let mut absorbed = 0;
+    let mut start = 0;
+    while start < list.len() {
+        let mut end = start + 1;
+        while end < list.len() && (list[end].t[0] - list[end - 1].t[1]).abs() <= ADJOINING {
+            end += 1;
+        }
+        if end - start > 1 && !kept[start..end].contains(&true) {
+            let longest = (start..end)
+                .max_by(|&a, &b| {
+                    let length = |i: usize| list[i].t[1] - list[i].t[0];
+                    length(a).total_cmp(&length(b)).then(b.cmp(&a))
+                })
+                .expect("a run holds pieces");
+            kept[longest] = true;
+        }
+        let mut anchor = None;
+        let mut before_first: Option<(f64, f64)> = None;
+        for i in start..end {
+            let piece = list[i];
+            if kept[i] {
+                let mut piece = piece;
+                if let Some((t, depth)) = before_first.take() {
+                    (piece.t[0], piece.depth[0], piece.bends) = (t, depth, false);
+                }
+                out.push(piece);
+                anchor = Some(out.len() - 1);
+            } else if end - start > 1 {
+                absorbed += 1;
+                match anchor {
+                    Some(a) => {
+                        let into: &mut Interval = &mut out[a];
+                        (into.t[1], into.depth[1], into.bends) =
+                            (piece.t[1], piece.depth[1], false);
+                    }
+                    None => {
+                        before_first.get_or_insert((piece.t[0], piece.depth[0]));
+                    }
+                }
+            }
+        }
+        start = end;
+    }
+    *list = out;
+    absorbed
 }
 
 /// Which of `list`'s intervals are its `keep` longest (ties to the earlier).
@@ -1347,25 +1429,37 @@ mod tests {
         let routine = TriangleStats {
             items: 10,
             compressed: 3,
-            dropped: 5,
+            shadow_lists: ShadowLists {
+                compressed: 2,
+                ..ShadowLists::default()
+            },
             ..TriangleStats::default()
         };
         assert!(routine.departures().is_empty());
         let departed = TriangleStats {
             too_far: 2,
+            dropped: 5,
+            absorbed: 4,
+            spatial_samples: 4,
             shadow_lists: ShadowLists {
                 coarsened: Some((4096, 1024)),
                 cap: Some(40),
                 cut: 7,
+                dropped: 6,
                 ..ShadowLists::default()
             },
             ..routine
         };
         let notes = departed.departures();
-        assert_eq!(notes.len(), 3, "{notes:?}");
+        assert_eq!(notes.len(), 5, "{notes:?}");
         assert!(notes[0].starts_with("2 triangle item(s) left out"));
         assert!(notes[1].contains("4096² texels drawn at 1024²"));
         assert!(notes[2].contains("their 40 longest pieces") && notes[2].contains("(7 shorter"));
+        assert!(notes[3].contains("6 short occluder pieces went"));
+        assert!(
+            notes[4].contains("cap of 1024: 4 short visible pieces given")
+                && notes[4].contains("5 dropped")
+        );
     }
 
     #[test]
@@ -1402,7 +1496,7 @@ mod tests {
     }
 
     #[test]
-    fn a_sample_with_more_visible_pieces_than_it_holds_compresses_seldom_and_keeps_the_longest() {
+    fn a_sample_with_more_visible_pieces_than_it_holds_compresses_seldom_and_keeps_their_time() {
         // 2,000 pieces one after another in time, alternately of two items (nothing joins), the
         // odd ones five times longer: every piece is visible, far more than a list holds.
         let mut scratch = Scratch::default();
@@ -1429,16 +1523,36 @@ mod tests {
             "{} compressions",
             stats.compressed
         );
-        assert!(stats.dropped > 0);
-        // What was dropped was short: all but a few of the long pieces are kept.
-        let long = scratch.lists[0]
-            .iter()
-            .filter(|i| i.t[1] - i.t[0] > 2e-4)
-            .count();
-        assert!(
-            long >= scratch.lists[0].len() - LIST_SLACK,
-            "{long} long pieces"
-        );
+        // Every piece that went adjoined a kept one, which took its time.
+        assert!(stats.absorbed > 0 && stats.dropped == 0, "{stats:?}");
+        // The pieces still cover the whole time, back to back: the surface is not thinned (each
+        // long piece took in the short ones after it, and the next compression joined the long
+        // ones of one item).
+        let list = &scratch.lists[0];
+        assert_eq!(list[0].t[0], 0.0);
+        assert!(list.windows(2).all(|pair| pair[0].t[1] == pair[1].t[0]));
+        assert_eq!(list[list.len() - 1].t[1], t);
+    }
+
+    #[test]
+    fn a_short_piece_with_no_neighbour_in_time_is_dropped_and_counted() {
+        // Pieces with gaps between them: none adjoins another, so the shortest go with their
+        // time, and are counted as dropped.
+        let mut scratch = Scratch::default();
+        scratch.reset(1, MAX_INTERVALS_PER_SAMPLE);
+        let mut stats = TriangleStats::default();
+        for k in 0..1500u32 {
+            let start = f64::from(k) * 1e-3;
+            let length = if k % 3 == 0 { 1e-4 } else { 5e-4 };
+            let piece = Interval {
+                t: [start, start + length],
+                depth: [1.0, 1.0],
+                item: k,
+                bends: false,
+            };
+            scratch.push(0, piece, &intervals::AsIs, &mut stats);
+        }
+        assert!(stats.dropped > 0 && stats.absorbed == 0, "{stats:?}");
     }
 
     #[test]

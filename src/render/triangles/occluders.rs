@@ -140,7 +140,7 @@ impl Prepared<'_> {
                 let depth = DepthPieces::AtOnce;
                 self.fill_tile(&list, bounds, &offsets, depth, scratch, &mut stats);
                 built.compressed = stats.compressed;
-                built.dropped = stats.dropped;
+                built.dropped = stats.dropped + stats.absorbed;
                 built.starts.reserve(texels + 1);
                 built.starts.push(0u32);
                 for texel in 0..texels {

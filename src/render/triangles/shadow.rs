@@ -358,7 +358,8 @@ pub struct ShadowLists {
     /// Times a texel's interval list was full ([`super::MAX_INTERVALS_PER_SAMPLE`]) and was
     /// resolved to make room, as an image sample's is.
     pub compressed: usize,
-    /// Intervals dropped from texel lists still full after that.
+    /// Intervals that went from texel lists still full after that (each one's time given to a
+    /// piece it adjoins where one does, as an image sample's).
     pub dropped: usize,
     /// When a map's lists would have held more than its share of [`MAX_SHADOW_PIECES`] at the
     /// resolution asked for: that side and the side it was drawn at, coarser (the smallest over
