@@ -12,6 +12,7 @@ use streak::plan::{ObjectMotion, SegmentCap, MAX_MOTION_FOOTPRINTS, MAX_SEGMENTS
 use streak::render::{
     MAX_FRAGMENTS_PER_PIXEL, MAX_SUBFRAMES, PREFILTER_VARIANCE_PX2, TILE_PX, TRUNCATION_GAIN,
 };
+use streak::scene::shutter::MIN_EXPOSURE;
 use streak::scene::{Camera, Pose};
 use streak::scene::{Shutter, ShutterShape};
 use streak::surfels::Surfel;
@@ -245,11 +246,12 @@ mod stiff {
 
     #[test]
     fn very_short_shutters_of_every_shape_draw_the_instant() {
-        // A square sliding 2 units over the frame, seen through a shutter open for 10⁻⁸ of it:
-        // it moves 10⁻⁸ units while the shutter is open, so every method draws the instant (the
-        // hint its sharp frame over a trail of that frame). Blur once stored absolute times in
-        // f32, where the whole exposure fell into one of its 32 time bins and the square came out
-        // at a 32nd of its opacity.
+        // A square sliding 2 units over the frame, seen through a shutter open for the least
+        // exposure a scene may ask, 10⁻⁹ of it: it moves 10⁻⁹ units while the shutter is open, so
+        // every method draws the instant (the hint its sharp frame over a trail of that frame).
+        // Blur once stored absolute times in f32, where the whole exposure fell into one of its
+        // 32 time bins and the square came out at a 32nd of its opacity; shorter shutters, near
+        // 10⁻¹³, darkened the reference, and are refused.
         let camera = camera(64, 64);
         let path = linear(DVec3::new(-1.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0));
         let mut moving = scene(camera, vec![object(square(1.5, 0.05, 0.0), path)]);
@@ -258,7 +260,7 @@ mod stiff {
             ShutterShape::Tent,
             ShutterShape::Gaussian,
         ] {
-            moving.shutter = Shutter::new(0.5, 0.5 + 1e-8, shape).unwrap();
+            moving.shutter = Shutter::new(0.5, 0.5 + MIN_EXPOSURE, shape).unwrap();
             let instant = red(&sharp(&moving, 0.5).image);
             for &method in METHODS {
                 let name = method.name();

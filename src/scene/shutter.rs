@@ -66,17 +66,44 @@ const GAUSS_LEGENDRE_8: [(f64, f64); 8] = [
     (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
 ];
 
+/// The shortest exposure a shutter may stay open, in normalized frame time. The methods' time
+/// arithmetic holds there (the stiff suite draws the instant at it with every method and shape);
+/// near 10⁻¹³ of the frame, a few hundred ulps of the open time, the reference's frame times and
+/// the time bins round together and the image darkens, and below 10⁻¹⁵ it was black.
+pub const MIN_EXPOSURE: f64 = 1e-9;
+
 impl Shutter {
     /// A shutter open from `open` to `close` in normalized frame time, weighting time by
-    /// `shape`; an error unless 0 ≤ open < close ≤ 1.
+    /// `shape`; an error unless 0 ≤ open < close ≤ 1 and the shutter stays open at least
+    /// [`MIN_EXPOSURE`].
     pub fn new(open: f64, close: f64, shape: ShutterShape) -> Result<Shutter> {
         let open = super::finite("open", open)?;
         let close = super::finite("close", close)?;
+        // Written out in full, 5e-324 is 300 digits long.
+        let short = |v: f64| {
+            let plain = v.to_string();
+            if plain.len() > 18 {
+                format!("{v:e}")
+            } else {
+                plain
+            }
+        };
+        let (open_text, close_text) = (short(open), short(close));
         if !(0.0..=1.0).contains(&open) || !(0.0..=1.0).contains(&close) || !(open < close) {
             return Err(Error::invalid(
                 "",
                 format!(
-                    "open = {open}, close = {close}: need 0 ≤ open < close ≤ 1 (normalized frame time)"
+                    "open = {open_text}, close = {close_text}: need 0 ≤ open < close ≤ 1 (normalized frame time)"
+                ),
+            ));
+        }
+        // close − open rounds: a shutter written MIN_EXPOSURE long may come out a few ulps short.
+        if !(close - open >= MIN_EXPOSURE * (1.0 - 1e-6)) {
+            return Err(Error::invalid(
+                "",
+                format!(
+                    "open = {open_text}, close = {close_text}: open for {:e} of the frame, less than {MIN_EXPOSURE:e}; for one instant, draw `-m static --time {open_text}`",
+                    close - open
                 ),
             ));
         }
@@ -214,6 +241,18 @@ mod tests {
             close: 0.9,
             shape,
         }
+    }
+
+    #[test]
+    fn a_shutter_shorter_than_the_least_exposure_is_refused_with_the_instant_to_draw() {
+        // 10⁻¹⁶ past one half is one ulp of it: the methods' time arithmetic drew black there.
+        for close in [0.5 + 1e-10, 0.5 + 1e-16] {
+            let error = Shutter::new(0.5, close, ShutterShape::Box)
+                .unwrap_err()
+                .to_string();
+            assert!(error.contains("-m static --time 0.5"), "{error}");
+        }
+        assert!(Shutter::new(0.5, 0.5 + MIN_EXPOSURE, ShutterShape::Gaussian).is_ok());
     }
 
     #[test]
