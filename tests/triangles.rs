@@ -432,6 +432,94 @@ fn at_an_instant_only_tiles_a_shadow_may_reach_look_up_their_shadow_map() {
 }
 
 #[test]
+fn still_triangles_reaching_behind_the_near_plane_keep_their_part_in_front() {
+    // A slope rising from z = 0 past the eye (z = 10) to z = 12: both its triangles have corners
+    // behind the eye. The centre ray meets it at z = 6, in front: it was left out whole.
+    let slope = Mesh {
+        positions: vec![
+            DVec3::new(-5.0, -5.0, 0.0),
+            DVec3::new(5.0, -5.0, 0.0),
+            DVec3::new(5.0, 5.0, 12.0),
+            DVec3::new(-5.0, 5.0, 12.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    let s = scene(33, 1).with_object(object(
+        "slope",
+        &slope,
+        [1.0; 3],
+        &[(0.0, at(0.0, 0.0, 0.0))],
+    ));
+    for method in [
+        Method::STATIC,
+        Method::Reference { samples: 2 },
+        Method::ANALYTIC,
+    ] {
+        let out = render(&s, &method);
+        assert!(all_finite(&out.image), "{method:?}");
+        assert_eq!(pixel(&out.image, 16, 16), [1.0; 3], "{method:?}");
+        assert_eq!(out.stats.triangles.behind_near, 0, "{method:?}");
+    }
+    // A spot at (0, 0, 3) shining down on a floor, beside a wall at x = 0.5 rising from z = 0.5
+    // past the spot's own plane to z = 5: the wall reaches behind the spot's near plane, and
+    // still shadows the floor beyond x = 0.6 (seen at x = 1.3, pixel 28), where before the
+    // shadow map left it out and the floor was lit. The floor at x = −1 (pixel 7) stays lit.
+    let wall = Mesh {
+        positions: vec![
+            DVec3::new(0.5, -1.0, 0.5),
+            DVec3::new(0.5, 1.0, 0.5),
+            DVec3::new(0.5, 1.0, 5.0),
+            DVec3::new(0.5, -1.0, 5.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    let spot =
+        |position: DVec3| streak::scene::Spot::new(position, DVec3::ZERO, 60.0, 1.0, true).unwrap();
+    let lit_by = |position: DVec3| {
+        scene(33, 1)
+            .with_lighting(
+                Lighting::new(0.2, Vec::new())
+                    .unwrap()
+                    .with_spots(vec![spot(position)]),
+            )
+            .with_object(object(
+                "floor",
+                &square(8.0),
+                [1.0; 3],
+                &[(0.0, at(0.0, 0.0, 0.0))],
+            ))
+    };
+    let walled = lit_by(DVec3::new(0.0, 0.0, 3.0)).with_object(object(
+        "wall",
+        &wall,
+        [1.0; 3],
+        &[(0.0, at(0.0, 0.0, 0.0))],
+    ));
+    // A spot inside a closed unit cube standing over the floor: from inside, every face of the
+    // cube faces away from the light, and culling back faces left none to cast a shadow.
+    let boxed = lit_by(DVec3::new(0.0, 0.0, 0.5)).with_object(object(
+        "box",
+        &Mesh::cuboid(DVec3::ONE),
+        [1.0; 3],
+        &[(0.0, at(0.0, 0.0, 0.6))],
+    ));
+    for (s, name) in [(walled, "wall"), (boxed, "box")] {
+        for method in [Method::STATIC, Method::ANALYTIC] {
+            let image = render(&s, &method).image;
+            let shadowed = pixel(&image, 28, 16)[0];
+            assert!(
+                (shadowed - 0.2).abs() < 1e-6,
+                "{name} {method:?}: {shadowed}"
+            );
+            if name == "wall" {
+                let lit = pixel(&image, 7, 16)[0];
+                assert!(lit > 0.3, "{method:?}: {lit}");
+            }
+        }
+    }
+}
+
+#[test]
 fn a_face_turning_away_from_the_light_is_lit_while_it_faces_it() {
     // A square turning about y from −80° to 80° (normal (sin θ, 0, cos θ)) under light from −x:
     // N·L = −sin θ, positive for the first half (Palmér eq. 2.5). At its centre, on the axis,

@@ -345,6 +345,11 @@ struct Placed {
     /// Whether it is still and in front of the near plane over the whole exposure: a sample it
     /// covers, it covers all along.
     all_along: bool,
+    /// For a still triangle reaching behind the near plane (a floor under the eye, a wall past
+    /// a spot light), the near plane's depth: it covers a sample only where the sample's ray
+    /// meets it at least that deep. Its edge tests, planes through the eye, hold on either side
+    /// of the eye, and its hit behind the eye is met at a negative depth.
+    near: Option<f64>,
     /// Its depth along any ray over the segment.
     depth: DepthFunction,
 }
@@ -549,9 +554,12 @@ impl<'a> Prepared<'a> {
     fn triangle(&self, item: &Item) -> Placed {
         let segment = self.segment(item);
         let triangle = self.corners(item);
-        let window = triangle.in_front(self.camera.near).unwrap_or([0.0, 0.0]);
         let still = triangle.delta == [DVec3::ZERO; 3];
+        let in_front = triangle.in_front(self.camera.near);
+        let near = (in_front.is_none() && still).then_some(self.camera.near);
+        let window = in_front.unwrap_or(if still { [0.0, 1.0] } else { [0.0, 0.0] });
         Placed {
+            near,
             edges: triangle.edge_functions(),
             depth: triangle.depth_function(),
             triangle,
@@ -565,10 +573,11 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// Every triangle over every segment that is in front of the near plane some of the time and
-    /// on screen, with its pixel bounds: the projections of its corners at the ends of its time
-    /// in front (a segment's straight path in camera space projects to a straight path on
-    /// screen, so they bound it), widened by a pixel.
+    /// Every triangle over every segment that is in front of the near plane some of the time (a
+    /// still one: some of it) and on screen, with its pixel bounds: the projections of its
+    /// corners at the ends of its time in front (a segment's straight path in camera space
+    /// projects to a straight path on screen, so they bound it), widened by a pixel; the whole
+    /// image for a still one reaching behind the near plane.
     /// Also returns how many were left out behind the near plane and too far out for double
     /// precision, and whether some item is behind the near plane part of the time. `count` is the
     /// number of triangle × segment pairs.
@@ -580,7 +589,13 @@ impl<'a> Prepared<'a> {
         let mut too_far = 0;
         let mut near_clipped = false;
         for (o, (_, mesh, segments)) in self.objects.iter().enumerate() {
-            for s in 0..segments.len() {
+            for (s, segment) in segments.iter().enumerate() {
+                // A closed mesh's back faces lie behind its front faces only for an eye outside
+                // it. Its vertices move on straight lines over the segment, so it lies within the
+                // box of their ends all along, and an eye (the origin) outside that box is
+                // outside the mesh; a light inside a closed box sees only back faces.
+                let cull_back = mesh.closed
+                    && !box_holds_origin(segment.start.iter().chain(&segment.end).copied());
                 for t in 0..mesh.triangles.len() {
                     let [n0, n1, n2] = mesh.normals[t];
                     let [c0, c1, c2] = mesh.triangles[t].map(|v| mesh.colours[v as usize]);
@@ -598,12 +613,21 @@ impl<'a> Prepared<'a> {
                         too_far += 1;
                         continue;
                     }
-                    let Some(window) = triangle.in_front(camera.near) else {
-                        behind_near += 1;
-                        continue;
+                    // A still triangle reaching behind the near plane keeps the part in front
+                    // ([`Placed::near`]); one wholly behind it is left out.
+                    let still = triangle.delta == [DVec3::ZERO; 3];
+                    let reaches_in_front =
+                        || triangle.start.iter().any(|corner| -corner.z >= camera.near);
+                    let window = match triangle.in_front(camera.near) {
+                        Some(window) => window,
+                        None if still && reaches_in_front() => [0.0, 1.0],
+                        None => {
+                            behind_near += 1;
+                            continue;
+                        }
                     };
                     near_clipped |= window != [0.0, 1.0];
-                    if mesh.closed && triangle.back_facing_throughout() {
+                    if cull_back && triangle.back_facing_throughout() {
                         continue;
                     }
                     // A corner at the near plane itself (a window's end) may round to behind it:
@@ -904,6 +928,14 @@ impl<'a> Prepared<'a> {
     }
 }
 
+/// Whether the bounding box of `points` holds the origin (on its faces included).
+fn box_holds_origin(points: impl Iterator<Item = DVec3>) -> bool {
+    let (lo, hi) = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    });
+    lo.cmple(DVec3::ZERO).all() && hi.cmpge(DVec3::ZERO).all()
+}
+
 /// How a moving triangle's depth over a covered interval enters a sample's list.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum DepthPieces {
@@ -1134,7 +1166,8 @@ impl Scratch {
         if !placed.edges.inside_at_start(d) {
             return;
         }
-        if let Some(depth) = triangle.depth(d, 0.0) {
+        let in_front = |depth: &f64| placed.near.is_none_or(|near| *depth >= near);
+        if let Some(depth) = triangle.depth(d, 0.0).filter(in_front) {
             if self.nearest[sample].is_none_or(|(z, _)| depth < z) {
                 self.nearest[sample] = Some((depth, item));
             }
@@ -1173,6 +1206,7 @@ impl Scratch {
                 .inside_at_start(d)
                 .then(|| placed.depth.hit_at_start(d).depth)
                 .flatten()
+                .filter(|&z| placed.near.is_none_or(|near| z >= near))
             {
                 if placed.all_along {
                     let nearest = &mut self.covered_all_along[sample];

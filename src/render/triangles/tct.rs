@@ -75,8 +75,9 @@ impl MovingTriangle {
     }
 
     /// The part of [0, 1] when every corner lies at least `near` deep (camera-space −z), or
-    /// `None` when there is none: the triangle is clipped in time, not in space, where a corner
-    /// crosses the near plane.
+    /// `None` when there is none: a moving triangle is clipped in time, not in space, where a
+    /// corner crosses the near plane (a still one is kept whole, its samples' hits tested
+    /// against the near plane: docs/math.md, "The near plane").
     #[must_use]
     pub fn in_front(&self, near: f64) -> Option<[f64; 2]> {
         let (mut lo, mut hi) = (0.0f64, 1.0f64);
