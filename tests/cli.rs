@@ -283,31 +283,56 @@ fn half_turns_lights_colours_and_budgets_are_rejected() {
         &["object[0].keyframe[1].rotate", "add keyframes"],
     );
     // Whole turns are orientations slerp cannot tell from none (720° is the identity), and a
-    // step past a half turn about one axis would be drawn the short way round.
-    for (name, from, to, needle) in [
-        ("two-turns", 0, 720, "turns 720° from the previous keyframe"),
-        ("one-turn", 0, 360, "turns 360° from the previous keyframe"),
+    // step past a half turn about one axis would be drawn the short way round. No turn about one
+    // axis is no rotation, whatever the next axis; whole turns about a new axis are refused.
+    const Y: &str = "[0, 1, 0]";
+    const Z: &str = "[0, 0, 1]";
+    for (name, (from_axis, from), (to_axis, to), needle) in [
+        (
+            "two-turns",
+            (Y, 0),
+            (Y, 720),
+            "turns 720° from the previous keyframe",
+        ),
+        (
+            "one-turn",
+            (Y, 0),
+            (Y, 360),
+            "turns 360° from the previous keyframe",
+        ),
         (
             "long-way",
-            170,
-            -170,
+            (Y, 170),
+            (Y, -170),
             "turns 340° from the previous keyframe",
         ),
         (
             "no-rotation-first",
-            0,
-            200,
+            (Y, 0),
+            (Y, 200),
             "turns 200° from the previous keyframe",
+        ),
+        (
+            "no-turn-about-another-axis-first",
+            (Y, 0),
+            (Z, 450),
+            "turns 450° from the previous keyframe",
+        ),
+        (
+            "whole-turns-about-a-new-axis",
+            (Y, 30),
+            (Z, 720),
+            "turns 720° about another axis",
         ),
     ] {
         let turn = SCENE
             .replace(
                 "t = 0.0",
-                &format!("t = 0.0\nrotate = {{ axis = [0, 1, 0], degrees = {from} }}"),
+                &format!("t = 0.0\nrotate = {{ axis = {from_axis}, degrees = {from} }}"),
             )
             .replace(
                 "translate = [0.5, 0, 0]",
-                &format!("rotate = {{ axis = [0, 1, 0], degrees = {to} }}"),
+                &format!("rotate = {{ axis = {to_axis}, degrees = {to} }}"),
             );
         rejected(name, &turn, &[], &["object[0].keyframe[", needle]);
     }

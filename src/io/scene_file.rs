@@ -666,7 +666,9 @@ fn validate_object(
                 })?;
                 let degrees = crate::scene::finite("degrees", r.degrees)
                     .map_err(|e| e.in_file(path, &rotate_field))?;
-                (Some(axis), degrees)
+                // No turn about one axis is no rotation: the step from it is the next angle
+                // as written, about whatever axis.
+                ((degrees != 0.0).then_some(axis), degrees)
             }
         };
         if let Some(turn) = turn_past_half(previous, (axis, degrees)) {
@@ -719,6 +721,15 @@ fn turn_past_half(
         (None, _) | (_, None) => Some(degrees - previous_degrees),
         (Some(a), Some(b)) if a.dot(b) > 1.0 - 1e-12 => Some(degrees - previous_degrees),
         (Some(a), Some(b)) if a.dot(b) < -1.0 + 1e-12 => Some(-degrees - previous_degrees),
+        // About a new axis only the orientations count, and a whole turn about it is none.
+        _ if degrees.abs() >= 360.0 => {
+            return Some(format!(
+                "turns {}° about another axis than the previous keyframe's; between two axes only \
+                 the orientations count, and whole turns cannot be seen in them: write the turn \
+                 about one axis, in keyframes less than 180° apart",
+                degrees.abs()
+            ))
+        }
         _ => None,
     }?;
     (step.abs() >= 180.0).then(|| {
