@@ -14,13 +14,13 @@ use streak::{Framebuffer, Method, Plan, Render, Scene};
 /// A square of side `side` in the plane z = 0 centred on the origin, as two triangles.
 fn square(side: f64) -> Mesh {
     let h = 0.5 * side;
+    quad([[-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0]])
+}
+
+/// The quadrilateral through `corners` in turn, as two triangles.
+fn quad(corners: [[f64; 3]; 4]) -> Mesh {
     Mesh {
-        positions: vec![
-            DVec3::new(-h, -h, 0.0),
-            DVec3::new(h, -h, 0.0),
-            DVec3::new(h, h, 0.0),
-            DVec3::new(-h, h, 0.0),
-        ],
+        positions: corners.map(DVec3::from_array).to_vec(),
         triangles: vec![[0, 1, 2], [0, 2, 3]],
     }
 }
@@ -323,6 +323,20 @@ fn lit(scene: Scene, ambient: f64, direction: DVec3, intensity: f64) -> Scene {
     scene.with_lighting(Lighting::new(ambient, vec![light]).unwrap())
 }
 
+/// A `size` × `size` view (one sample per pixel) of a white 8 × 8 floor at z = 0, lit from
+/// (1, 0, 1) with ambient 0.2 and 0.8 more where lit, under a black square of side `side` posed
+/// at `keys`.
+fn floor_under_square(size: u32, side: f64, keys: &[(f64, Pose)]) -> Scene {
+    lit(scene(size, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
+        .with_object(object(
+            "floor",
+            &square(8.0),
+            [1.0; 3],
+            &[(0.0, at(0.0, 0.0, 0.0))],
+        ))
+        .with_object(object("occluder", &square(side), [0.0; 3], keys))
+}
+
 #[test]
 fn a_still_floor_under_a_sliding_occluder_is_lit_for_the_closed_form_time() {
     // The floor z = 0 is seen straight down at its centre pixel, which is the point (0, 0).
@@ -330,19 +344,11 @@ fn a_still_floor_under_a_sliding_occluder_is_lit_for_the_closed_form_time() {
     // height 1 while the square's x lies in [0.5, 1.5], a quarter of its slide from −2 to 2;
     // the square hides the point itself while its x is in [−0.5, 0.5], another quarter.
     // Lit: 0.2 + 0.8·cos 45°; shadowed: 0.2; hidden: black.
-    let s = lit(scene(33, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
-        .with_object(object(
-            "floor",
-            &square(8.0),
-            [1.0; 3],
-            &[(0.0, at(0.0, 0.0, 0.0))],
-        ))
-        .with_object(object(
-            "occluder",
-            &square(1.0),
-            [0.0; 3],
-            &[(0.0, at(-2.0, 0.0, 1.0)), (1.0, at(2.0, 0.0, 1.0))],
-        ));
+    let s = floor_under_square(
+        33,
+        1.0,
+        &[(0.0, at(-2.0, 0.0, 1.0)), (1.0, at(2.0, 0.0, 1.0))],
+    );
     let lit = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
     let expected = 0.5 * lit + 0.25 * 0.2;
     let out = render(&s, &Method::ANALYTIC);
@@ -385,19 +391,7 @@ fn at_an_instant_only_tiles_a_shadow_may_reach_look_up_their_shadow_map() {
     // x, y in [−1.2, −0.8] × [−0.2, 0.2], in the middle row's first tile, while the square
     // itself is seen in its second. No other tile's samples can read a texel the square
     // reaches, and they look up nothing.
-    let s = lit(scene(48, 1), 0.2, DVec3::new(1.0, 0.0, 1.0), 0.8)
-        .with_object(object(
-            "floor",
-            &square(8.0),
-            [1.0; 3],
-            &[(0.0, at(0.0, 0.0, 0.0))],
-        ))
-        .with_object(object(
-            "occluder",
-            &square(0.4),
-            [0.0; 3],
-            &[(0.0, at(0.0, 0.0, 1.0))],
-        ));
+    let s = floor_under_square(48, 0.4, &[(0.0, at(0.0, 0.0, 1.0))]);
     let lit_value = 0.2 + 0.8 * std::f64::consts::FRAC_1_SQRT_2;
     // 3.53 units across 48 px: x = −1.0 at px 10.4, x = 1.2 at px 40.3.
     for method in [Method::STATIC, Method::Reference { samples: 4 }] {
@@ -435,15 +429,12 @@ fn at_an_instant_only_tiles_a_shadow_may_reach_look_up_their_shadow_map() {
 fn still_triangles_reaching_behind_the_near_plane_keep_their_part_in_front() {
     // A slope rising from z = 0 past the eye (z = 10) to z = 12: both its triangles have corners
     // behind the eye. The centre ray meets it at z = 6, in front: it was left out whole.
-    let slope = Mesh {
-        positions: vec![
-            DVec3::new(-5.0, -5.0, 0.0),
-            DVec3::new(5.0, -5.0, 0.0),
-            DVec3::new(5.0, 5.0, 12.0),
-            DVec3::new(-5.0, 5.0, 12.0),
-        ],
-        triangles: vec![[0, 1, 2], [0, 2, 3]],
-    };
+    let slope = quad([
+        [-5.0, -5.0, 0.0],
+        [5.0, -5.0, 0.0],
+        [5.0, 5.0, 12.0],
+        [-5.0, 5.0, 12.0],
+    ]);
     let s = scene(33, 1).with_object(object(
         "slope",
         &slope,
@@ -464,15 +455,12 @@ fn still_triangles_reaching_behind_the_near_plane_keep_their_part_in_front() {
     // past the spot's own plane to z = 5: the wall reaches behind the spot's near plane, and
     // still shadows the floor beyond x = 0.6 (seen at x = 1.3, pixel 28), where before the
     // shadow map left it out and the floor was lit. The floor at x = −1 (pixel 7) stays lit.
-    let wall = Mesh {
-        positions: vec![
-            DVec3::new(0.5, -1.0, 0.5),
-            DVec3::new(0.5, 1.0, 0.5),
-            DVec3::new(0.5, 1.0, 5.0),
-            DVec3::new(0.5, -1.0, 5.0),
-        ],
-        triangles: vec![[0, 1, 2], [0, 2, 3]],
-    };
+    let wall = quad([
+        [0.5, -1.0, 0.5],
+        [0.5, 1.0, 0.5],
+        [0.5, 1.0, 5.0],
+        [0.5, -1.0, 5.0],
+    ]);
     let spot =
         |position: DVec3| streak::scene::Spot::new(position, DVec3::ZERO, 60.0, 1.0, true).unwrap();
     let lit_by = |position: DVec3| {
