@@ -220,7 +220,7 @@ impl Method {
                 "tolerance",
                 format!(
                     "{}: must be between {} and {} pixels",
-                    self.tolerance_px(),
+                    crate::error::shown(self.tolerance_px()),
                     TOLERANCE_RANGE_PX.start(),
                     TOLERANCE_RANGE_PX.end()
                 ),

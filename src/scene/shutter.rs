@@ -79,16 +79,7 @@ impl Shutter {
     pub fn new(open: f64, close: f64, shape: ShutterShape) -> Result<Shutter> {
         let open = super::finite("open", open)?;
         let close = super::finite("close", close)?;
-        // Written out in full, 5e-324 is 300 digits long.
-        let short = |v: f64| {
-            let plain = v.to_string();
-            if plain.len() > 18 {
-                format!("{v:e}")
-            } else {
-                plain
-            }
-        };
-        let (open_text, close_text) = (short(open), short(close));
+        let (open_text, close_text) = (crate::error::shown(open), crate::error::shown(close));
         if !(0.0..=1.0).contains(&open) || !(0.0..=1.0).contains(&close) || !(open < close) {
             return Err(Error::invalid(
                 "",
