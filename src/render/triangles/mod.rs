@@ -41,7 +41,7 @@ pub const MAX_TRIANGLE_ITEMS: usize = 1 << 24;
 /// 40 kB): past it the list is resolved to its visible pieces (Gribel's compression); when that
 /// leaves less than [`LIST_SLACK`] free, each triangle's consecutive pieces are joined into one
 /// line; and only then do the shortest pieces go, down to that slack (all counted), each one's
-/// time given to a kept piece it adjoins ([`absorb_shortest`]), so that a surface covering the
+/// time given to a kept piece it adjoins (docs/math.md, "Resolve"), so that a surface covering the
 /// sample all along keeps covering it. A dense mesh moving fast fills many: the armadillo's
 /// 100,000 triangles sliding 90 px at 320 × 240 peak at 554 on one sample, and at a cap of 256
 /// its samples dropped 902,734 pieces, RMSE against the reference 2.7·10⁻³ (1.2·10⁻⁴ with none
@@ -159,7 +159,7 @@ pub struct TriangleStats {
     /// and shadow map, made.
     pub shadow_lookups: usize,
     /// Of the same, left out: the sample's tile reads nothing in that map but its own
-    /// triangle's occluders ([`Prepared::casters_seen`]), so it is lit.
+    /// triangle's occluders (docs/math.md, "Tiles no shadow reaches"), so it is lit.
     pub shadow_lookups_left_out: usize,
     /// Spatial samples per pixel.
     pub spatial_samples: u32,
