@@ -13,7 +13,9 @@ use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
-use crate::render::triangles::shadow::{light_camera, MAX_SHADOWED_LIGHTS};
+use crate::render::triangles::shadow::{
+    coarse_directional_shadows, light_camera, MAX_SHADOWED_LIGHTS,
+};
 use crate::render::{
     render_planned, trail_window, Method, Progress, Render, Subframes, MAX_SUBFRAMES,
     MAX_TRIANGLE_ITEMS,
@@ -203,6 +205,9 @@ pub struct Plan<'a> {
     /// [`crate::scene::Lighting::sources`] order: made once here, for every frame the method
     /// draws (empty unless triangles are drawn as triangles).
     pub shadow_cameras: Vec<Camera>,
+    /// Triangle objects whose shadows a directional light's map is too coarse to show
+    /// ([`coarse_directional_shadows`]), one note each.
+    shadow_notes: Vec<String>,
 }
 
 impl<'a> Plan<'a> {
@@ -313,6 +318,7 @@ impl<'a> Plan<'a> {
             tolerance_px,
             lit: scene.lighting.is_lit(),
             shadow_cameras: Vec::new(),
+            shadow_notes: Vec::new(),
         };
         let items = plan.triangle_items();
         if items > MAX_TRIANGLE_ITEMS {
@@ -339,6 +345,7 @@ impl<'a> Plan<'a> {
                 .filter(|source| source.shadows())
                 .map(|source| light_camera(&source, scene, &plan))
                 .collect::<Result<_>>()?;
+            plan.shadow_notes = coarse_directional_shadows(scene, &plan);
         }
         Ok(plan)
     }
@@ -515,6 +522,7 @@ impl<'a> Plan<'a> {
                 }
                 _ => None,
             })
+            .chain(self.shadow_notes.iter().cloned())
             .collect()
     }
 
@@ -599,6 +607,9 @@ impl<'a> Plan<'a> {
         } else {
             "  lighting: none, so no shading pass (colours drawn as given)".to_string()
         });
+        for note in &self.shadow_notes {
+            line(format!("  shadows: {note}"));
+        }
         if let Some(c) = culled {
             line("left out while rendering (per surfel and instant or sub-segment):".to_string());
             line(format!("  back-facing: {}", c.back_facing));

@@ -338,6 +338,28 @@ fn floor_under_square(size: u32, side: f64, keys: &[(f64, Pose)]) -> Scene {
 }
 
 #[test]
+fn a_directional_map_stretched_past_an_objects_shadow_says_so() {
+    // The floor and its unit square, then the same with a speck 10⁴ units away: the map frames
+    // both, its texels grow to about 10 units, and the square's shadow falls within two.
+    let near = floor_under_square(33, 1.0, &[(0.0, at(0.0, 0.0, 1.0))]);
+    let plan = Plan::new(&near, &Method::STATIC).unwrap();
+    assert!(plan.departures().is_empty(), "{:?}", plan.departures());
+    let far = near.with_object(object(
+        "speck",
+        &square(0.01),
+        [1.0; 3],
+        &[(0.0, at(1e4, 0.0, 0.0))],
+    ));
+    let notes = Plan::new(&far, &Method::STATIC).unwrap().departures();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.starts_with("\"occluder\" is 1.414 across, within two texels")),
+        "{notes:?}"
+    );
+}
+
+#[test]
 fn a_still_floor_under_a_sliding_occluder_is_lit_for_the_closed_form_time() {
     // The floor z = 0 is seen straight down at its centre pixel, which is the point (0, 0).
     // Light comes from (1, 0, 1): the point is in the shadow of the black unit square at

@@ -171,6 +171,54 @@ pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Result<
         })
 }
 
+/// Notes for the triangle objects too small for a directional light's shadow map to show: the
+/// map frames every triangle object over the whole exposure (the same for every method), so one
+/// object far away, or a keyframe far off, stretches its texels until a nearby object's shadow
+/// falls within two of them, lost or faint. Empty without a shadowed directional light.
+#[must_use]
+pub fn coarse_directional_shadows(scene: &Scene, plan: &Plan) -> Vec<String> {
+    let directional = scene
+        .lighting
+        .sources()
+        .any(|source| source.shadows() && matches!(source, LightSource::Directional(_)));
+    if !directional {
+        return Vec::new();
+    }
+    let (_, radius) = triangle_bounds(scene, plan);
+    // The light camera frames 1.05 radii each way ([`light_camera`]).
+    let texel = 2.1 * radius / f64::from(scene.lighting.shadow_map);
+    let middle = scene.shutter.middle();
+    scene
+        .objects
+        .iter()
+        .enumerate()
+        .filter_map(|(index, object)| {
+            let mesh = plan.mesh_of(index).filter(|_| plan.draws_triangles(index))?;
+            let (lo, hi) = mesh.positions.iter().fold(
+                (DVec3::INFINITY, DVec3::NEG_INFINITY),
+                |(lo, hi), &p| (lo.min(p), hi.max(p)),
+            );
+            let across = (hi - lo).length() * object.motion.pose_at(middle).scale;
+            let length = |v: f64| {
+                if v >= 1e-3 {
+                    format!("{v:.3}")
+                } else {
+                    format!("{v:.2e}")
+                }
+            };
+            (across < 2.0 * texel).then(|| {
+                format!(
+                    "{:?} is {} across, within two texels of the directional light's shadow map ({} each: the map frames every triangle object over the exposure, {} across), so its shadow is lost or faint: a larger shadow_map, or the triangle objects and their keyframes kept near what the camera sees, would show it",
+                    object.name,
+                    length(across),
+                    length(texel),
+                    length(2.0 * radius)
+                )
+            })
+        })
+        .collect()
+}
+
 /// Centre and radius of a sphere around every triangle object drawn as triangles over the
 /// exposure, the same whatever the method (so that `static` and each `reference` frame see the
 /// shadow map `analytic` sees, at any tolerance): each vertex at the shutter's ends and middle,
