@@ -13,9 +13,7 @@ use crate::error::Error;
 use crate::error::Result;
 use crate::lod::{self, Cells, Lod, LodOutcome, ObjectLod, MAX_PATH_SAMPLES};
 use crate::project::Culled;
-use crate::render::triangles::shadow::{
-    coarse_directional_shadows, light_camera, MAX_SHADOWED_LIGHTS,
-};
+use crate::render::triangles::shadow::{shadow_cameras, MAX_SHADOWED_LIGHTS};
 use crate::render::{
     render_planned, trail_window, Method, Progress, Render, Subframes, MAX_SUBFRAMES,
     MAX_TRIANGLE_ITEMS,
@@ -206,7 +204,7 @@ pub struct Plan<'a> {
     /// draws (empty unless triangles are drawn as triangles).
     pub shadow_cameras: Vec<Camera>,
     /// Triangle objects whose shadows a directional light's map is too coarse to show
-    /// ([`coarse_directional_shadows`]), one note each.
+    /// ([`shadow_cameras`]), one note each.
     shadow_notes: Vec<String>,
 }
 
@@ -339,13 +337,7 @@ impl<'a> Plan<'a> {
                     ),
                 ));
             }
-            plan.shadow_cameras = scene
-                .lighting
-                .sources()
-                .filter(|source| source.shadows())
-                .map(|source| light_camera(&source, scene, &plan))
-                .collect::<Result<_>>()?;
-            plan.shadow_notes = coarse_directional_shadows(scene, &plan);
+            (plan.shadow_cameras, plan.shadow_notes) = shadow_cameras(scene, &plan)?;
         }
         Ok(plan)
     }

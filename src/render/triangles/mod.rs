@@ -554,10 +554,12 @@ impl<'a> Prepared<'a> {
     fn triangle(&self, item: &Item) -> Placed {
         let segment = self.segment(item);
         let triangle = self.corners(item);
-        let still = triangle.delta == [DVec3::ZERO; 3];
-        let in_front = triangle.in_front(self.camera.near);
-        let near = (in_front.is_none() && still).then_some(self.camera.near);
-        let window = in_front.unwrap_or(if still { [0.0, 1.0] } else { [0.0, 0.0] });
+        let still = triangle.is_still();
+        let (window, near) = triangle
+            .near_window(self.camera.near)
+            .map_or(([0.0, 0.0], None), |(window, tested)| {
+                (window, tested.then_some(self.camera.near))
+            });
         Placed {
             near,
             edges: triangle.edge_functions(),
@@ -613,18 +615,9 @@ impl<'a> Prepared<'a> {
                         too_far += 1;
                         continue;
                     }
-                    // A still triangle reaching behind the near plane keeps the part in front
-                    // ([`Placed::near`]); one wholly behind it is left out.
-                    let still = triangle.delta == [DVec3::ZERO; 3];
-                    let reaches_in_front =
-                        || triangle.start.iter().any(|corner| -corner.z >= camera.near);
-                    let window = match triangle.in_front(camera.near) {
-                        Some(window) => window,
-                        None if still && reaches_in_front() => [0.0, 1.0],
-                        None => {
-                            behind_near += 1;
-                            continue;
-                        }
+                    let Some((window, _)) = triangle.near_window(camera.near) else {
+                        behind_near += 1;
+                        continue;
                     };
                     near_clipped |= window != [0.0, 1.0];
                     if cull_back && triangle.back_facing_throughout() {
@@ -930,9 +923,7 @@ impl<'a> Prepared<'a> {
 
 /// Whether the bounding box of `points` holds the origin (on its faces included).
 fn box_holds_origin(points: impl Iterator<Item = DVec3>) -> bool {
-    let (lo, hi) = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-        (lo.min(p), hi.max(p))
-    });
+    let (lo, hi) = crate::math::bounds(points);
     lo.cmple(DVec3::ZERO).all() && hi.cmpge(DVec3::ZERO).all()
 }
 
@@ -953,8 +944,10 @@ enum DepthPieces {
 /// ([`MovingTriangle::plane_depths_within`]) where they are tighter.
 fn depth_bounds_within(triangle: &MovingTriangle, rays: [DVec3; 4]) -> [f64; 2] {
     let bounds = triangle.depth_bounds();
-    let still = triangle.delta == [DVec3::ZERO; 3];
-    match still.then(|| triangle.plane_depths_within(rays)) {
+    match triangle
+        .is_still()
+        .then(|| triangle.plane_depths_within(rays))
+    {
         Some(Some(plane)) => [bounds[0].max(plane[0]), bounds[1].min(plane[1])],
         _ => bounds,
     }
@@ -1347,9 +1340,8 @@ fn absorb_shortest(
         let mut anchor = None;
         let mut before_first: Option<(f64, f64)> = None;
         for i in start..end {
-            let piece = list[i];
+            let mut piece = list[i];
             if kept[i] {
-                let mut piece = piece;
                 if let Some((t, depth)) = before_first.take() {
                     (piece.t[0], piece.depth[0], piece.bends) = (t, depth, false);
                 }

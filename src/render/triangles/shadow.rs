@@ -22,6 +22,7 @@ use crate::error::{Error, Result};
 use crate::math::floor_to_i64;
 use crate::plan::Plan;
 use crate::scene::{Camera, LightSource, Motion, Scene, Shutter};
+use std::cell::OnceCell;
 
 /// Depth bias against self-shadowing, in texel widths at the receiver's depth, times
 /// 1 + tan of the angle between the receiver's normal and the light (capped at
@@ -108,14 +109,40 @@ impl Receiver {
     }
 }
 
+/// The camera of each shadow-casting light's map, in [`crate::scene::Lighting::sources`]
+/// order (the plan makes them once, [`Plan::shadow_cameras`]), and a note for each triangle
+/// object a directional light's map is too coarse to shadow ([`coarse_directional_shadows`]).
+/// The triangle objects' bounds that directional lights frame are found once for all of them.
+///
+/// Errors: those of [`light_camera`].
+pub fn shadow_cameras(scene: &Scene, plan: &Plan) -> Result<(Vec<Camera>, Vec<String>)> {
+    let bounds = OnceCell::new();
+    let cameras = (scene.lighting.sources())
+        .filter(|source| source.shadows())
+        .map(|source| {
+            light_camera(&source, scene, || {
+                *bounds.get_or_init(|| triangle_bounds(scene, plan))
+            })
+        })
+        .collect::<Result<_>>()?;
+    let notes = bounds.get().map_or_else(Vec::new, |&(_, radius)| {
+        coarse_directional_shadows(scene, plan, radius)
+    });
+    Ok((cameras, notes))
+}
+
 /// The camera of `source`'s shadow map: the spot's own view of its cone, or for a directional
 /// light a narrow perspective view from far along its direction, framing the triangle objects'
-/// bounds over the exposure (the plan makes them once, [`Plan::shadow_cameras`]).
+/// bounds over the exposure (centre and radius, from `bounds`, [`triangle_bounds`]).
 ///
 /// Errors: a spot so far from the origin that one step along its direction does not change its
 /// position in double precision, or triangles so far out that a directional light's view of
 /// them overflows; the error names the light and what would be right.
-pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Result<Camera> {
+fn light_camera(
+    source: &LightSource,
+    scene: &Scene,
+    bounds: impl FnOnce() -> (DVec3, f64),
+) -> Result<Camera> {
     let size = scene.lighting.shadow_map;
     let up = |direction: DVec3| {
         if direction.cross(DVec3::Y).length() > 1e-3 {
@@ -137,7 +164,7 @@ pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Result<
             )
         }
         LightSource::Directional(l) => {
-            let (centre, radius) = triangle_bounds(scene, plan);
+            let (centre, radius) = bounds();
             let distance = DIRECTIONAL_DISTANCE * radius;
             let fov = 2.0 * (1.05 / DIRECTIONAL_DISTANCE).atan().to_degrees();
             Camera::new(
@@ -172,40 +199,28 @@ pub fn light_camera(source: &LightSource, scene: &Scene, plan: &Plan) -> Result<
 }
 
 /// Notes for the triangle objects too small for a directional light's shadow map to show: the
-/// map frames every triangle object over the whole exposure (the same for every method), so one
-/// object far away, or a keyframe far off, stretches its texels until a nearby object's shadow
-/// falls within two of them, lost or faint. Empty without a shadowed directional light.
-#[must_use]
-pub fn coarse_directional_shadows(scene: &Scene, plan: &Plan) -> Vec<String> {
-    let directional = scene
-        .lighting
-        .sources()
-        .any(|source| source.shadows() && matches!(source, LightSource::Directional(_)));
-    if !directional {
-        return Vec::new();
-    }
-    let (_, radius) = triangle_bounds(scene, plan);
+/// map frames every triangle object over the whole exposure (the same for every method, a sphere
+/// of `radius` about them), so one object far away, or a keyframe far off, stretches its texels
+/// until a nearby object's shadow falls within two of them, lost or faint.
+fn coarse_directional_shadows(scene: &Scene, plan: &Plan, radius: f64) -> Vec<String> {
     // The light camera frames 1.05 radii each way ([`light_camera`]).
     let texel = 2.1 * radius / f64::from(scene.lighting.shadow_map);
     let middle = scene.shutter.middle();
+    let length = |v: f64| {
+        if v >= 1e-3 {
+            format!("{v:.3}")
+        } else {
+            format!("{v:.2e}")
+        }
+    };
     scene
         .objects
         .iter()
         .enumerate()
         .filter_map(|(index, object)| {
             let mesh = plan.mesh_of(index).filter(|_| plan.draws_triangles(index))?;
-            let (lo, hi) = mesh.positions.iter().fold(
-                (DVec3::INFINITY, DVec3::NEG_INFINITY),
-                |(lo, hi), &p| (lo.min(p), hi.max(p)),
-            );
+            let (lo, hi) = crate::math::bounds(mesh.positions.iter().copied());
             let across = (hi - lo).length() * object.motion.pose_at(middle).scale;
-            let length = |v: f64| {
-                if v >= 1e-3 {
-                    format!("{v:.3}")
-                } else {
-                    format!("{v:.2e}")
-                }
-            };
             (across < 2.0 * texel).then(|| {
                 format!(
                     "{:?} is {} across, within two texels of the directional light's shadow map ({} each: the map frames every triangle object over the exposure, {} across), so its shadow is lost or faint: a larger shadow_map, or the triangle objects and their keyframes kept near what the camera sees, would show it",

@@ -76,8 +76,29 @@ impl MovingTriangle {
 
     /// The part of [0, 1] when every corner lies at least `near` deep (camera-space −z), or
     /// `None` when there is none: a moving triangle is clipped in time, not in space, where a
-    /// corner crosses the near plane (a still one is kept whole, its samples' hits tested
-    /// against the near plane: docs/math.md, "The near plane").
+    /// corner crosses the near plane ([`MovingTriangle::near_window`]).
+    /// Whether no corner moves.
+    #[must_use]
+    pub fn is_still(&self) -> bool {
+        self.delta == [DVec3::ZERO; 3]
+    }
+
+    /// What of [0, 1] the triangle is drawn over against the near plane `near` deep, and whether
+    /// its samples' hits must be tested against that plane: [`MovingTriangle::in_front`] where
+    /// that is some, untested; a still triangle reaching behind the near plane with a corner in
+    /// front of it, all of [0, 1], tested (its edge tests hold on either side of the eye:
+    /// docs/math.md, "The near plane"); `None` when none of it is drawn.
+    #[must_use]
+    pub fn near_window(&self, near: f64) -> Option<([f64; 2], bool)> {
+        match self.in_front(near) {
+            Some(window) => Some((window, false)),
+            None if self.is_still() && self.start.iter().any(|corner| -corner.z >= near) => {
+                Some(([0.0, 1.0], true))
+            }
+            None => None,
+        }
+    }
+
     #[must_use]
     pub fn in_front(&self, near: f64) -> Option<[f64; 2]> {
         let (mut lo, mut hi) = (0.0f64, 1.0f64);
