@@ -739,15 +739,26 @@ impl<'a> Prepared<'a> {
     ) {
         let samples = ((x1 - x0) * (y1 - y0)) as usize * offsets.len();
         scratch.reset(samples, list_cap(offsets.len()));
-        let grid = SampleGrid::new(bounds, offsets);
+        let mut rays = std::mem::take(&mut scratch.rays);
+        rays.clear();
+        for y in y0..y1 {
+            for x in x0..x1 {
+                rays.extend(
+                    offsets
+                        .iter()
+                        .map(|[ox, oy]| self.camera.ray(f64::from(x) + ox, f64::from(y) + oy)),
+                );
+            }
+        }
+        let grid = SampleGrid::new(bounds, offsets, &rays);
         scratch.tile.clear(self.items.len());
         let cut_later = self.exposure == Exposure::Shutter && depth == DepthPieces::OnDemand;
-        // At an instant the tile's items are kept only to learn which shadow maps shadow none of
-        // them, so that their samples look up no shadow there.
-        let instant_shadowed =
-            matches!(self.exposure, Exposure::Instant(_)) && !self.shadows.is_empty();
-        let shared = cut_later || instant_shadowed;
-        let rays = self.corner_rays(bounds);
+        // At an instant the tile's items are kept to learn which shadow maps shadow none of them,
+        // so that their samples look up no shadow there, and for a plain item's shading, which
+        // its samples then read from the tile rather than from its corners.
+        let instant = matches!(self.exposure, Exposure::Instant(_));
+        let shared = cut_later || instant;
+        let corners = self.corner_rays(bounds);
         let mut depth_bounds = [f64::INFINITY, f64::NEG_INFINITY];
         // Still items first: where one covers a sample all along, a later item lying wholly
         // deeper than it there can never be seen, and is left out before its coverage is
@@ -761,14 +772,14 @@ impl<'a> Prepared<'a> {
                 }
                 let placed = self.triangle(item);
                 if shared {
-                    let bounds @ [near, far] = depth_bounds_within(&placed.triangle, rays);
+                    let bounds @ [near, far] = depth_bounds_within(&placed.triangle, corners);
                     depth_bounds = [depth_bounds[0].min(near), depth_bounds[1].max(far)];
                     scratch.tile.push(TileItem {
                         index,
                         depth: placed.depth,
                         bounds,
                         unshadowed: [false; MAX_SHADOWED_LIGHTS],
-                        plain: (cut_later && item.plain).then(|| {
+                        plain: (shared && item.plain).then(|| {
                             let normals = self.world_normals(item, [1.0 / 3.0; 3]);
                             PlainFace {
                                 normals,
@@ -781,8 +792,9 @@ impl<'a> Prepared<'a> {
                 self.cover_samples(index, &placed, &grid, depth, scratch, stats);
             }
         }
+        scratch.rays = rays;
         if shared {
-            let casters = self.casters_seen(rays, depth_bounds);
+            let casters = self.casters_seen(corners, depth_bounds);
             for entry in &mut scratch.tile.entries {
                 let own = self.shadow_id(&self.items[entry.index as usize]);
                 entry.unshadowed =
@@ -841,6 +853,7 @@ impl<'a> Prepared<'a> {
             bounds: [x0, y0, x1, y1],
             offsets,
             spread,
+            rays,
         } = *grid;
         let w = (x1 - x0) as usize;
         let per_pixel = offsets.len();
@@ -860,9 +873,8 @@ impl<'a> Prepared<'a> {
             }
             for x in from..to {
                 let pixel = (y - y0) as usize * w + (x - x0) as usize;
-                for (k, [ox, oy]) in offsets.iter().enumerate() {
-                    let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
-                    let sample = pixel * per_pixel + k;
+                let first = pixel * per_pixel;
+                for (sample, &d) in (first..).zip(&rays[first..first + per_pixel]) {
                     match self.exposure {
                         Exposure::Instant(_) => scratch.nearer(sample, placed, d, index),
                         Exposure::Shutter => {
@@ -895,20 +907,17 @@ impl<'a> Prepared<'a> {
         stats: &mut TriangleStats,
     ) {
         self.fill_tile(list, bounds, offsets, DepthPieces::OnDemand, scratch, stats);
-        let camera = &self.camera;
         let w = (x1 - x0) as usize;
         let per_pixel = offsets.len();
         let background = self.scene.background.map(f64::from);
         let mut pixels = std::mem::take(&mut scratch.pixels);
         pixels.clear();
         for pixel in 0..w * (y1 - y0) as usize {
-            let (x, y) = (x0 + (pixel % w) as u32, y0 + (pixel / w) as u32);
             let mut sum = [0.0f64; 3];
             let mut hidden = f64::NEG_INFINITY;
-            for (k, [ox, oy]) in offsets.iter().enumerate() {
-                let d = camera.ray(f64::from(x) + ox, f64::from(y) + oy);
-                let (colour, beyond) =
-                    self.sample_colour(scratch, pixel * per_pixel + k, d, background, stats);
+            for sample in pixel * per_pixel..(pixel + 1) * per_pixel {
+                let d = scratch.rays[sample];
+                let (colour, beyond) = self.sample_colour(scratch, sample, d, background, stats);
                 for c in 0..3 {
                     sum[c] += colour[c];
                 }
@@ -983,7 +992,7 @@ fn depth_pieces(
 /// ([`Prepared::shadow_id`]).
 const WHOLE_OBJECT: u32 = u32::MAX;
 
-/// A tile's samples: its pixels and the samples' offsets within each.
+/// A tile's samples: its pixels, the samples' offsets within each, and their rays.
 #[derive(Clone, Copy)]
 struct SampleGrid<'o> {
     /// Pixel bounds [x0, y0, x1, y1).
@@ -991,10 +1000,12 @@ struct SampleGrid<'o> {
     offsets: &'o [[f64; 2]],
     /// The box the offsets span, [x0, y0, x1, y1].
     spread: [f64; 4],
+    /// Each sample's ray, pixel by pixel along rows, a pixel's samples in `offsets`' order.
+    rays: &'o [DVec3],
 }
 
 impl<'o> SampleGrid<'o> {
-    fn new(bounds: [u32; 4], offsets: &'o [[f64; 2]]) -> SampleGrid<'o> {
+    fn new(bounds: [u32; 4], offsets: &'o [[f64; 2]], rays: &'o [DVec3]) -> SampleGrid<'o> {
         let spread = offsets.iter().fold(
             [
                 f64::INFINITY,
@@ -1008,6 +1019,7 @@ impl<'o> SampleGrid<'o> {
             bounds,
             offsets,
             spread,
+            rays,
         }
     }
 }
@@ -1133,6 +1145,10 @@ struct Scratch {
     tile: TileShared,
     /// The finished pixels: colour and hidden-beyond depth.
     pixels: Vec<([f32; 3], f32)>,
+    /// The ray of each sample of the tile ([`Camera::ray`]), worked out once for its items.
+    ///
+    /// [`Camera::ray`]: crate::scene::Camera::ray
+    rays: Vec<DVec3>,
 }
 
 impl Scratch {

@@ -148,7 +148,15 @@ impl Prepared<'_> {
                         stats.shadow_lookups_left_out += left_out;
                         stats.shadow_lookups += self.shadows.len() - left_out;
                     }
-                    let colour = self.shade(item, &self.corners(item), d, (0.0, t), unshadowed);
+                    // A plain face's surface from the tile's copy of its plane and shading.
+                    let colour = match scratch.tile.of(index).and_then(|e| Some((e, e.plain?))) {
+                        Some((entry, face)) => {
+                            let hit = entry.depth.hit_at_start_with(d, depth);
+                            let surface = self.plain_surface_point(&hit, d, 0.0, &face);
+                            self.shade_at(item, surface, t, unshadowed)
+                        }
+                        None => self.shade(item, &self.corners(item), d, (0.0, t), unshadowed),
+                    };
                     (colour, depth)
                 }
                 None => (background, f64::INFINITY),
@@ -462,9 +470,15 @@ impl Prepared<'_> {
         let fraction = |t: f64| if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
         let span = piece.t;
         if segment.still {
-            // A plain face's surface from the tile's copy of its plane and shading.
+            // A plain face's surface from the tile's copy of its plane and shading, at the depth
+            // its interval keeps (a still face's all along, as it was inserted).
             let entry = tile.of(piece.item);
-            let plain = entry.and_then(|entry| Some((entry.depth.hit_at_start(d), entry.plain?)));
+            let plain = entry.and_then(|entry| {
+                Some((
+                    entry.depth.hit_at_start_with(d, piece.depth[0]),
+                    entry.plain?,
+                ))
+            });
             let surface = match plain {
                 Some((hit, face)) => self.plain_surface_point(&hit, d, 0.0, &face),
                 None => self.surface_point(item, &self.corners(item), d, 0.0),
@@ -818,11 +832,30 @@ impl Prepared<'_> {
         if !self.scene.lighting.is_lit() {
             return self.albedo(item, triangle, d, s);
         }
+        self.shade_at(
+            item,
+            self.surface_point(item, triangle, d, s),
+            t,
+            unshadowed,
+        )
+    }
+
+    /// [`Prepared::shade`] of the `surface` a sample sees on `item` at time `t`.
+    fn shade_at(
+        &self,
+        item: &Item,
+        surface: SurfacePoint,
+        t: f64,
+        unshadowed: [bool; MAX_SHADOWED_LIGHTS],
+    ) -> [f64; 3] {
         let SurfacePoint {
             normal,
             point: p,
             albedo,
-        } = self.surface_point(item, triangle, d, s);
+        } = surface;
+        if !self.scene.lighting.is_lit() {
+            return albedo;
+        }
         let own = self.shadow_id(item);
         let mut visibility = [1.0; MAX_SHADOWED_LIGHTS];
         for ((v, map), unshadowed) in visibility.iter_mut().zip(&self.shadows).zip(unshadowed) {

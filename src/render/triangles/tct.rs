@@ -282,6 +282,17 @@ impl DepthFunction {
             back: facing > 0.0,
         }
     }
+
+    /// [`DepthFunction::hit_at_start`] where its `depth` is known already (a still triangle's
+    /// interval keeps it): the side the ray meets, without the division.
+    #[must_use]
+    pub fn hit_at_start_with(&self, d: DVec3, depth: f64) -> RayHit {
+        RayHit {
+            weights: [1.0 / 3.0; 3],
+            depth: Some(depth),
+            back: d.dot(self.normal[0]) > 0.0,
+        }
+    }
 }
 
 /// A moving triangle's depth along one ray: cubic over quadratic in s.
