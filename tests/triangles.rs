@@ -338,19 +338,31 @@ fn floor_under_square(size: u32, side: f64, keys: &[(f64, Pose)]) -> Scene {
 }
 
 #[test]
-fn a_directional_map_stretched_past_an_objects_shadow_says_so() {
-    // The floor and its unit square, then the same with a speck 10⁴ units away: the map frames
-    // both, its texels grow to about 10 units, and the square's shadow falls within two.
+fn a_directional_map_frames_what_the_camera_sees() {
+    // The floor and its unit square, seen 3.5 units across, shadowed where x ∈ [−1.5, −0.5].
     let near = floor_under_square(33, 1.0, &[(0.0, at(0.0, 0.0, 1.0))]);
     let plan = Plan::new(&near, &Method::STATIC).unwrap();
     assert!(plan.departures().is_empty(), "{:?}", plan.departures());
-    let far = near.with_object(object(
-        "speck",
-        &square(0.01),
-        [1.0; 3],
-        &[(0.0, at(1e4, 0.0, 0.0))],
-    ));
-    let notes = Plan::new(&far, &Method::STATIC).unwrap().departures();
+    let speck = |x: f64, z: f64| object("speck", &square(0.01), [1.0; 3], &[(0.0, at(x, 0.0, z))]);
+    // A speck 10⁴ units off screen, which can shadow nothing seen, leaves the shadow as it was
+    // (3·10⁻⁴ mean difference, from the light's camera standing farther off) and no note. A map
+    // framing the speck too had texels 10 units wide, lost the square's shadow (a mean
+    // difference of 0.042 over the image) and noted all three objects.
+    let off_screen = near.clone().with_object(speck(1e4, 0.0));
+    let [with, without] = [&off_screen, &near].map(|s| render(s, &Method::STATIC).image);
+    let differences: Vec<f32> = (with.pixels.iter().zip(&without.pixels))
+        .map(|(a, b)| (a[0] - b[0]).abs())
+        .collect();
+    let mean = differences.iter().sum::<f32>() / differences.len() as f32;
+    // Pixel (4, 16) is the floor at x ≈ −1.3, in the shadow: 0.2 (ambient) without the speck.
+    assert!((pixel(&without, 4, 16)[0] - 0.2).abs() < 1e-3);
+    assert!(mean < 2e-3, "mean difference {mean}");
+    let plan = Plan::new(&off_screen, &Method::STATIC).unwrap();
+    assert!(plan.departures().is_empty(), "{:?}", plan.departures());
+    // A speck seen 10⁴ units beneath the floor (behind it, but within the view) widens what the
+    // map frames to about 10⁴ units, and the square's shadow falls within two texels: a note.
+    let deep = near.with_object(speck(0.0, -1e4));
+    let notes = Plan::new(&deep, &Method::STATIC).unwrap().departures();
     assert!(
         notes
             .iter()

@@ -43,6 +43,11 @@ pub const MAX_BIAS_SLOPE: f64 = 20.0;
 /// so that its perspective is within 1/this of an orthographic view.
 const DIRECTIONAL_DISTANCE: f64 = 50.0;
 
+/// Most radii of the sphere a directional light's map frames that the objects may reach beyond
+/// it towards the light: its camera's view is then 2.4 · 10⁻³ degrees wide, above the least a
+/// camera takes ([`crate::scene::camera::MIN_FOV_Y_DEGREES`]). Farther, the sphere widens.
+const MAX_REACH_RADII: f64 = 1000.0;
+
 /// Most point samples of a receiver sweeping the shadow map, per visible piece.
 pub const MAX_RECEIVER_SAMPLES: usize = 256;
 
@@ -116,32 +121,122 @@ impl Receiver {
 ///
 /// Errors: those of [`light_camera`].
 pub fn shadow_cameras(scene: &Scene, plan: &Plan) -> Result<(Vec<Camera>, Vec<String>)> {
-    let bounds = OnceCell::new();
+    let frame = OnceCell::new();
     let cameras = (scene.lighting.sources())
         .filter(|source| source.shadows())
         .map(|source| {
             light_camera(&source, scene, || {
-                *bounds.get_or_init(|| triangle_bounds(scene, plan))
+                frame.get_or_init(|| DirectionalFrame::new(scene, plan))
             })
         })
         .collect::<Result<_>>()?;
-    let notes = bounds.get().map_or_else(Vec::new, |&(_, radius)| {
-        coarse_directional_shadows(scene, plan, radius)
+    let notes = frame.get().map_or_else(Vec::new, |frame| {
+        coarse_directional_shadows(scene, plan, frame)
     });
     Ok((cameras, notes))
 }
 
+/// What a directional light's map frames: a sphere (centre, radius) around what the camera can
+/// see of the triangle objects over the exposure, and the box around all of them, whose part
+/// towards the light the map's depth range must hold (any of it may shadow what is seen).
+#[derive(Clone, Debug)]
+struct DirectionalFrame {
+    seen: (DVec3, f64),
+    all: [DVec3; 2],
+    /// Each triangle object's index and box ([`triangle_boxes`]).
+    boxes: Vec<(usize, [DVec3; 2])>,
+}
+
+impl DirectionalFrame {
+    /// The frame of `scene`'s triangle objects ([`triangle_boxes`]). Each object's box is cut
+    /// to the box around the camera's frustum between its near plane and the object's farthest
+    /// depth, which holds every point of the object the camera can see: an object leaving the
+    /// view, or one far off screen, no longer stretches the map's texels over what is not seen.
+    /// Where nothing can be seen, the frame is all of them.
+    fn new(scene: &Scene, plan: &Plan) -> DirectionalFrame {
+        let boxes = triangle_boxes(scene, plan);
+        let all = boxes.iter().fold(
+            [DVec3::INFINITY, DVec3::NEG_INFINITY],
+            |[lo, hi], (_, [a, b])| [lo.min(*a), hi.max(*b)],
+        );
+        let camera = &scene.camera;
+        let to_world = camera.view.inverse();
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        let edges = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)].map(|(x, y)| camera.ray(x, y));
+        let mut seen = [DVec3::INFINITY, DVec3::NEG_INFINITY];
+        for &(_, [lo, hi]) in &boxes {
+            let farthest = (0..8)
+                .map(|k| {
+                    let corner =
+                        DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
+                    -camera.view.transform_point3(corner).z
+                })
+                .fold(f64::NEG_INFINITY, f64::max);
+            if !(farthest >= camera.near) {
+                continue;
+            }
+            let frustum = crate::math::bounds(edges.iter().flat_map(|&ray| {
+                [camera.near, farthest].map(|depth| to_world.transform_point3(ray * depth))
+            }));
+            let (cut_lo, cut_hi) = (lo.max(frustum.0), hi.min(frustum.1));
+            if cut_lo.cmple(cut_hi).all() {
+                seen = [seen[0].min(cut_lo), seen[1].max(cut_hi)];
+            }
+        }
+        let sphere = |[lo, hi]: [DVec3; 2]| {
+            if lo.x <= hi.x {
+                (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-9))
+            } else {
+                (DVec3::ZERO, 1.0)
+            }
+        };
+        DirectionalFrame {
+            seen: sphere(if seen[0].x <= seen[1].x { seen } else { all }),
+            all,
+            boxes,
+        }
+    }
+
+    /// Whether `bounds` reach into the map of a light along the unit `direction`: the cylinder
+    /// along it of the 1.05 radii about the centre that the map frames ([`Self::framing`]).
+    fn frames(&self, [lo, hi]: [DVec3; 2], direction: DVec3) -> bool {
+        let (centre, radius, _) = self.framing(direction);
+        let offset = 0.5 * (lo + hi) - centre;
+        let across = offset - offset.dot(direction) * direction;
+        across.length() - 0.5 * (hi - lo).length() <= 1.05 * radius
+    }
+
+    /// For a light along the unit `direction`, the centre and radius of the sphere its map
+    /// frames, and how far the objects reach from that centre towards the light (at least the
+    /// radius). The sphere is the seen one, widened to [`MAX_REACH_RADII`]⁻¹ of the reach where
+    /// objects lie farther towards the light than that many radii: the light's camera stands
+    /// [`DIRECTIONAL_DISTANCE`] reaches away, and its view may be no narrower than a camera's.
+    fn framing(&self, direction: DVec3) -> (DVec3, f64, f64) {
+        let (centre, radius) = self.seen;
+        let [lo, hi] = self.all;
+        let reach = (0..8)
+            .map(|k| {
+                let corner =
+                    DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
+                (corner - centre).dot(direction)
+            })
+            .fold(radius, f64::max);
+        (centre, radius.max(reach / MAX_REACH_RADII), reach)
+    }
+}
+
 /// The camera of `source`'s shadow map: the spot's own view of its cone, or for a directional
-/// light a narrow perspective view from far along its direction, framing the triangle objects'
-/// bounds over the exposure (centre and radius, from `bounds`, [`triangle_bounds`]).
+/// light a narrow perspective view from far along its direction, framing what the camera can
+/// see of the triangle objects over the exposure, its near plane before all of them (`frame`,
+/// [`DirectionalFrame`]).
 ///
 /// Errors: a spot so far from the origin that one step along its direction does not change its
 /// position in double precision, or triangles so far out that a directional light's view of
 /// them overflows; the error names the light and what would be right.
-fn light_camera(
+fn light_camera<'f>(
     source: &LightSource,
     scene: &Scene,
-    bounds: impl FnOnce() -> (DVec3, f64),
+    frame: impl FnOnce() -> &'f DirectionalFrame,
 ) -> Result<Camera> {
     let size = scene.lighting.shadow_map;
     let up = |direction: DVec3| {
@@ -164,18 +259,20 @@ fn light_camera(
             )
         }
         LightSource::Directional(l) => {
-            let (centre, radius) = bounds();
-            let distance = DIRECTIONAL_DISTANCE * radius;
-            let fov = 2.0 * (1.05 / DIRECTIONAL_DISTANCE).atan().to_degrees();
+            // Far enough along the light for every object towards it to lie in front of the
+            // near plane, and as narrow as to frame 1.05 radii each way at the centre.
+            let (centre, radius, reach) = frame().framing(l.direction);
+            let distance = DIRECTIONAL_DISTANCE * reach;
+            let fov = 2.0 * ((1.05 / DIRECTIONAL_DISTANCE) * (radius / reach)).atan();
             Camera::new(
                 centre + l.direction * distance,
                 centre,
                 up(l.direction),
-                fov,
+                fov.to_degrees(),
                 size,
                 size,
             )
-            .and_then(|c| c.with_near(distance - 1.5 * radius))
+            .and_then(|c| c.with_near(distance - 1.5 * reach))
         }
     };
     camera
@@ -199,12 +296,19 @@ fn light_camera(
 }
 
 /// Notes for the triangle objects too small for a directional light's shadow map to show: the
-/// map frames every triangle object over the whole exposure (the same for every method, a sphere
-/// of `radius` about them), so one object far away, or a keyframe far off, stretches its texels
-/// until a nearby object's shadow falls within two of them, lost or faint.
-fn coarse_directional_shadows(scene: &Scene, plan: &Plan, radius: f64) -> Vec<String> {
+/// map frames what the camera can see of the triangle objects over the whole exposure (the same
+/// for every method, a sphere of `radius`, [`DirectionalFrame`]), so a wide view, or an object
+/// seen far off, stretches its texels until a nearby object's shadow falls within two of them,
+/// lost or faint.
+fn coarse_directional_shadows(scene: &Scene, plan: &Plan, frame: &DirectionalFrame) -> Vec<String> {
+    let directions: Vec<DVec3> = (scene.lighting.sources())
+        .filter_map(|source| match source {
+            LightSource::Directional(l) if l.shadows => Some(l.direction),
+            _ => None,
+        })
+        .collect();
     // The light camera frames 1.05 radii each way ([`light_camera`]).
-    let texel = 2.1 * radius / f64::from(scene.lighting.shadow_map);
+    let texel = |radius: f64| 2.1 * radius / f64::from(scene.lighting.shadow_map);
     let middle = scene.shutter.middle();
     let length = |v: f64| {
         if v >= 1e-3 {
@@ -213,40 +317,43 @@ fn coarse_directional_shadows(scene: &Scene, plan: &Plan, radius: f64) -> Vec<St
             format!("{v:.2e}")
         }
     };
-    scene
-        .objects
+    frame
+        .boxes
         .iter()
-        .enumerate()
-        .filter_map(|(index, object)| {
-            let mesh = plan.mesh_of(index).filter(|_| plan.draws_triangles(index))?;
+        .filter_map(|&(index, bounds)| {
+            let object = &scene.objects[index];
+            let mesh = plan.mesh_of(index)?;
             let (lo, hi) = crate::math::bounds(mesh.positions.iter().copied());
             let across = (hi - lo).length() * object.motion.pose_at(middle).scale;
-            (across < 2.0 * texel).then(|| {
-                format!(
-                    "{:?} is {} across, within two texels of the directional light's shadow map ({} each: the map frames every triangle object over the exposure, {} across), so its shadow is lost or faint: a larger shadow_map, or the triangle objects and their keyframes kept near what the camera sees, would show it",
+            let radius = (directions.iter())
+                .filter(|&&d| frame.frames(bounds, d))
+                .map(|&d| frame.framing(d).1)
+                .find(|&radius| across < 2.0 * texel(radius))?;
+            Some(format!(
+                    "{:?} is {} across, within two texels of the directional light's shadow map ({} each: the map frames what the camera sees of the triangle objects over the exposure, {} across), so its shadow is lost or faint: a larger shadow_map, or a narrower view, would show it",
                     object.name,
                     length(across),
-                    length(texel),
+                    length(texel(radius)),
                     length(2.0 * radius)
-                )
-            })
+                ))
         })
         .collect()
 }
 
-/// Centre and radius of a sphere around every triangle object drawn as triangles over the
-/// exposure, the same whatever the method (so that `static` and each `reference` frame see the
-/// shadow map `analytic` sees, at any tolerance): each vertex at the shutter's ends and middle,
-/// at every keyframe, and every [`BOUND_TURN_STEP`] of a turn between keyframes. Where that is
-/// more than [`BOUND_VERTEX_POSES`] vertex poses, the sphere about the object's origin that holds
-/// it in any orientation, at the shutter's ends and keyframes (looser, so texels are coarser).
-fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
+/// The index and box [lo, hi] of each triangle object drawn as triangles over the exposure, the same
+/// whatever the method (so that `static` and each `reference` frame see the shadow map
+/// `analytic` sees, at any tolerance): each vertex at the shutter's ends and middle, at every
+/// keyframe, and every [`BOUND_TURN_STEP`] of a turn between keyframes. Where that is more than
+/// [`BOUND_VERTEX_POSES`] vertex poses, around the sphere about the object's origin that holds it
+/// in any orientation, at the shutter's ends and keyframes (looser, so texels are coarser).
+fn triangle_boxes(scene: &Scene, plan: &Plan) -> Vec<(usize, [DVec3; 2])> {
     let (open, close) = (scene.shutter.open, scene.shutter.close);
-    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    let mut boxes = Vec::new();
     for (index, object) in scene.objects.iter().enumerate() {
         let Some(mesh) = plan.mesh_of(index).filter(|_| plan.draws_triangles(index)) else {
             continue;
         };
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         let motion = &object.motion;
         let keys = motion.keyframe_ends(open, close);
         let most_poses = BOUND_VERTEX_POSES / mesh.positions.len().max(1);
@@ -260,6 +367,7 @@ fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
                     hi = hi.max(w);
                 }
             }
+            boxes.push((index, [lo, hi]));
             continue;
         }
         // Translation and scale are linear between keyframes, so the sphere's centre and radius
@@ -275,11 +383,10 @@ fn triangle_bounds(scene: &Scene, plan: &Plan) -> (DVec3, f64) {
             lo = lo.min(pose.translation - radius);
             hi = hi.max(pose.translation + radius);
         }
+        boxes.push((index, [lo, hi]));
     }
-    if !(lo.x <= hi.x) {
-        return (DVec3::ZERO, 1.0);
-    }
-    (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-9))
+    boxes.retain(|(_, [lo, hi])| lo.x <= hi.x);
+    boxes
 }
 
 /// The keyframe `ends` and every [`BOUND_TURN_STEP`] of a turn between them, unless that is more
@@ -306,7 +413,7 @@ fn bound_times(motion: &Motion, ends: &[f64], most: usize) -> Option<Vec<f64>> {
 /// 4·10⁻⁵ r, well inside the light camera's 5 % margin.
 const BOUND_TURN_STEP: f64 = std::f64::consts::PI / 180.0;
 
-/// Most vertex poses [`triangle_bounds`] takes of one object (2²⁴, tenths of a second).
+/// Most vertex poses [`triangle_boxes`] takes of one object (2²⁴, tenths of a second).
 const BOUND_VERTEX_POSES: usize = 1 << 24;
 
 /// One occluder piece of a texel: when, how deep, and which triangle (object, triangle).
