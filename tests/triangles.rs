@@ -1247,3 +1247,55 @@ fn every_method_and_tolerance_sees_the_same_shadow_map() {
         assert!(cameras(method.clone()) == seen, "{method:?}");
     }
 }
+
+#[test]
+fn a_tile_holding_more_items_than_it_copies_draws_them_from_their_corners() {
+    // A flat grey grid of 105,800 triangles, 4 units wide, filling a 16 × 16 view (one tile) that
+    // sees about 81,000 of them, more than the tile keeps copies of; under a light at cos 0.8
+    // with ambient 0.2, each pixel is 0.5 × (0.2 + 0.8 × 0.8) = 0.42, still and sliding.
+    let cells = 230;
+    let step = 4.0 / f64::from(cells);
+    let vertex =
+        |i: u32, j: u32| DVec3::new(-2.0 + step * f64::from(i), -2.0 + step * f64::from(j), 0.0);
+    let positions = (0..=cells)
+        .flat_map(|j| (0..=cells).map(move |i| vertex(i, j)))
+        .collect();
+    let corner = |i: u32, j: u32| j * (cells + 1) + i;
+    let triangles = (0..cells)
+        .flat_map(|j| (0..cells).map(move |i| (i, j)))
+        .flat_map(|(i, j)| {
+            let [a, b, c, d] = [
+                corner(i, j),
+                corner(i + 1, j),
+                corner(i + 1, j + 1),
+                corner(i, j + 1),
+            ];
+            [[a, b, c], [a, c, d]]
+        })
+        .collect();
+    let grid = Mesh {
+        positions,
+        triangles,
+    };
+    let light = Light::new(DVec3::new(0.0, 0.6, 0.8), 0.8).unwrap();
+    let lit = scene(16, 4).with_lighting(Lighting::new(0.2, vec![light]).unwrap());
+    for (keys, method) in [
+        (vec![(0.0, at(0.0, 0.0, 0.0))], Method::STATIC),
+        (
+            vec![(0.0, at(-0.1, 0.0, 0.0)), (1.0, at(0.1, 0.0, 0.0))],
+            Method::ANALYTIC,
+        ),
+    ] {
+        let s = lit
+            .clone()
+            .with_object(object("grid", &grid, [0.5; 3], &keys));
+        let out = Plan::with_lod(&s, &method, streak::lod::Lod::Off)
+            .unwrap()
+            .render(None);
+        let stats = out.stats.triangles;
+        assert!(stats.unshared_tile_items > 10_000, "{stats:?}");
+        for p in &out.image.pixels {
+            assert!((f64::from(p[0]) - 0.42).abs() < 1e-5, "{method:?}: {p:?}");
+        }
+    }
+}

@@ -37,6 +37,13 @@ use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth};
 /// render may hold.
 pub const MAX_TRIANGLE_ITEMS: usize = 1 << 24;
 
+/// Most items one tile keeps a shared copy of for its samples ([`TileItem`]: its depth function,
+/// plain face and which shadow maps leave it unshadowed, 240 bytes; 15 MiB a thread). A tile's
+/// further items are read from their corners by each sample, as the shared copy would give them,
+/// more slowly. A bunny of 69,451 triangles spun over 241 sub-segments at 48 × 36 put millions
+/// of items in one tile and peaked at 5.7 GB with every one copied.
+pub const MAX_TILE_SHARED_ITEMS: usize = 1 << 16;
+
 /// Most intervals one sample's list keeps, an image sample's or a shadow-map texel's (about
 /// 40 kB): past it the list is resolved to its visible pieces (Gribel's compression); when that
 /// leaves less than [`LIST_SLACK`] free, each triangle's consecutive pieces are joined into one
@@ -145,6 +152,8 @@ pub struct TriangleStats {
     /// Samples a triangle item was left out of unsolved: it lies wholly deeper there than a
     /// still triangle covering the sample all along.
     pub hidden_behind_still: usize,
+    /// Item × tile pairs past [`MAX_TILE_SHARED_ITEMS`] in their tile, read from their corners.
+    pub unshared_tile_items: usize,
     /// Visible pieces shaded (`analytic`).
     pub pieces: usize,
     /// Runs of visible pieces: a triangle's pieces back to back in time, one per sub-segment it
@@ -220,6 +229,12 @@ impl TriangleStats {
                 ));
             }
         }
+        if self.unshared_tile_items > 0 {
+            out.push_str(&format!(
+                "  {} item × tile pairs past the {MAX_TILE_SHARED_ITEMS} items a tile keeps a shared copy of: read from their corners at each sample (the same surfaces, more slowly)\n",
+                self.unshared_tile_items
+            ));
+        }
         if self.shadow_lookups + self.shadow_lookups_left_out > 0 {
             out.push_str(&format!(
                 "  shadow lookups at an instant: {} made, {} left out (the sample's tile reads nothing in that map but its own triangle's occluders)\n",
@@ -293,6 +308,7 @@ impl TriangleStats {
         self.dropped += other.dropped;
         self.absorbed += other.absorbed;
         self.hidden_behind_still += other.hidden_behind_still;
+        self.unshared_tile_items += other.unshared_tile_items;
         self.shadow_lookups += other.shadow_lookups;
         self.shadow_lookups_left_out += other.shadow_lookups_left_out;
         self.pieces += other.pieces;
@@ -757,7 +773,7 @@ impl<'a> Prepared<'a> {
         // so that their samples look up no shadow there, and for a plain item's shading, which
         // its samples then read from the tile rather than from its corners.
         let instant = matches!(self.exposure, Exposure::Instant(_));
-        let shared = cut_later || instant;
+        let kept_shared = cut_later || instant;
         let corners = self.corner_rays(bounds);
         let mut depth_bounds = [f64::INFINITY, f64::NEG_INFINITY];
         // Still items first: where one covers a sample all along, a later item lying wholly
@@ -771,7 +787,9 @@ impl<'a> Prepared<'a> {
                     continue;
                 }
                 let placed = self.triangle(item);
-                if shared {
+                let share = kept_shared && scratch.tile.entries.len() < MAX_TILE_SHARED_ITEMS;
+                stats.unshared_tile_items += usize::from(kept_shared && !share);
+                if share {
                     let bounds @ [near, far] = depth_bounds_within(&placed.triangle, corners);
                     depth_bounds = [depth_bounds[0].min(near), depth_bounds[1].max(far)];
                     scratch.tile.push(TileItem {
@@ -779,7 +797,7 @@ impl<'a> Prepared<'a> {
                         depth: placed.depth,
                         bounds,
                         unshadowed: [false; MAX_SHADOWED_LIGHTS],
-                        plain: (shared && item.plain).then(|| {
+                        plain: item.plain.then(|| {
                             let normals = self.world_normals(item, [1.0 / 3.0; 3]);
                             PlainFace {
                                 normals,
@@ -793,7 +811,7 @@ impl<'a> Prepared<'a> {
             }
         }
         scratch.rays = rays;
-        if shared {
+        if kept_shared {
             let casters = self.casters_seen(corners, depth_bounds);
             for entry in &mut scratch.tile.entries {
                 let own = self.shadow_id(&self.items[entry.index as usize]);
