@@ -958,6 +958,13 @@ mod tests {
     fn a_half_turn_between_keyframes_asks_for_more_keyframes() {
         let keys = "\n[[object.keyframe]]\nt = 0\n[[object.keyframe]]\nt = 1\nrotate = { axis = [0, 1, 0], degrees = 200 }\n";
         assert!(error_of(&format!("{MINIMAL}{keys}")).contains("add keyframes in between"));
+        // Under 180° as written, but the quaternions' rounding may take either way: the
+        // orientations' check refuses it, and says why.
+        let near = keys.replace("200", "179.99999999999997");
+        let message = error_of(&format!("{MINIMAL}{near}"));
+        assert!(message.contains("so near it"), "{message}");
+        let fine = keys.replace("200", "179.9999");
+        assert!(Scene::parse(&format!("{MINIMAL}{fine}"), Path::new("s.toml")).is_ok());
     }
 
     #[test]

@@ -125,12 +125,14 @@ impl Motion {
                     ));
                 }
                 // A negative dot product of the quaternions means the long way round, which
-                // slerp cannot take.
+                // slerp cannot take; within 10⁻⁹ of zero (a step within 1.15·10⁻⁷° of a half
+                // turn) the rounding of the quaternions may take either way.
                 if previous.pose.rotation.dot(rotation) <= 1e-9 {
                     return Err(Error::invalid(
                         field("rotate"),
-                        "turns 180° or more from the previous keyframe; rotation is interpolated by slerp, which takes \
-                         the shorter way, so keyframes must be less than 180° apart: add keyframes in between",
+                        "turns 180° or more from the previous keyframe, or so near it (within 1.15e-7°) that rounding \
+                         may take the long way; rotation is interpolated by slerp, which takes the shorter way, so \
+                         keyframes must be less than 180° apart: add keyframes in between",
                     ));
                 }
             }
