@@ -305,6 +305,14 @@ pub fn bounds(points: impl IntoIterator<Item = DVec3>) -> (DVec3, DVec3) {
         })
 }
 
+/// The eight corners of the box from `lo` to `hi`.
+#[must_use]
+pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+    std::array::from_fn(|k| {
+        DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo)
+    })
+}
+
 /// A Morton (Z-order) curve through a bounding cube, 21 bits per axis: points near each other
 /// in space mostly get keys near each other, so data sorted by key is read with fewer cache
 /// misses when a computation walks the surface.

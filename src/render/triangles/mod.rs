@@ -37,7 +37,7 @@ use tct::{DepthFunction, EdgeFunctions, MovingTriangle, RayDepth};
 /// render may hold.
 pub const MAX_TRIANGLE_ITEMS: usize = 1 << 24;
 
-/// Most items one tile keeps a shared copy of for its samples ([`TileItem`]: its depth function,
+/// Most items one tile keeps a shared copy of for its samples (`TileItem`: its depth function,
 /// plain face and which shadow maps leave it unshadowed, 240 bytes; 15 MiB a thread). A tile's
 /// further items are read from their corners by each sample, as the shared copy would give them,
 /// more slowly. A bunny of 69,451 triangles spun over 241 sub-segments at 48 × 36 put millions

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::intervals::Interval;
 use crate::error::{Error, Result};
-use crate::math::floor_to_i64;
+use crate::math::{box_corners, floor_to_i64};
 use crate::plan::Plan;
 use crate::scene::{Camera, LightSource, Motion, Scene, Shutter};
 use std::cell::OnceCell;
@@ -165,12 +165,8 @@ impl DirectionalFrame {
         let edges = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)].map(|(x, y)| camera.ray(x, y));
         let mut seen = [DVec3::INFINITY, DVec3::NEG_INFINITY];
         for &(_, [lo, hi]) in &boxes {
-            let farthest = (0..8)
-                .map(|k| {
-                    let corner =
-                        DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
-                    -camera.view.transform_point3(corner).z
-                })
+            let farthest = (box_corners(lo, hi).iter())
+                .map(|&corner| -camera.view.transform_point3(corner).z)
                 .fold(f64::NEG_INFINITY, f64::max);
             if !(farthest >= camera.near) {
                 continue;
@@ -214,12 +210,8 @@ impl DirectionalFrame {
     fn framing(&self, direction: DVec3) -> (DVec3, f64, f64) {
         let (centre, radius) = self.seen;
         let [lo, hi] = self.all;
-        let reach = (0..8)
-            .map(|k| {
-                let corner =
-                    DVec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
-                (corner - centre).dot(direction)
-            })
+        let reach = (box_corners(lo, hi).iter())
+            .map(|&corner| (corner - centre).dot(direction))
             .fold(radius, f64::max);
         (centre, radius.max(reach / MAX_REACH_RADII), reach)
     }
