@@ -206,6 +206,8 @@ pub struct Plan<'a> {
     /// Triangle objects whose shadows a directional light's map is too coarse to show
     /// ([`shadow_cameras`]), one note each.
     shadow_notes: Vec<String>,
+    /// What each shadowed directional light's map spans, for `--explain` ([`shadow_cameras`]).
+    shadow_framing: Vec<String>,
 }
 
 impl<'a> Plan<'a> {
@@ -317,6 +319,7 @@ impl<'a> Plan<'a> {
             lit: scene.lighting.is_lit(),
             shadow_cameras: Vec::new(),
             shadow_notes: Vec::new(),
+            shadow_framing: Vec::new(),
         };
         let items = plan.triangle_items();
         if items > MAX_TRIANGLE_ITEMS {
@@ -337,7 +340,8 @@ impl<'a> Plan<'a> {
                     ),
                 ));
             }
-            (plan.shadow_cameras, plan.shadow_notes) = shadow_cameras(scene, &plan)?;
+            (plan.shadow_cameras, plan.shadow_notes, plan.shadow_framing) =
+                shadow_cameras(scene, &plan)?;
         }
         Ok(plan)
     }
@@ -599,7 +603,7 @@ impl<'a> Plan<'a> {
         } else {
             "  lighting: none, so no shading pass (colours drawn as given)".to_string()
         });
-        for note in &self.shadow_notes {
+        for note in self.shadow_framing.iter().chain(&self.shadow_notes) {
             line(format!("  shadows: {note}"));
         }
         if let Some(c) = culled {

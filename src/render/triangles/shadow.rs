@@ -115,12 +115,16 @@ impl Receiver {
 }
 
 /// The camera of each shadow-casting light's map, in [`crate::scene::Lighting::sources`]
-/// order (the plan makes them once, [`Plan::shadow_cameras`]), and a note for each triangle
-/// object a directional light's map is too coarse to shadow ([`coarse_directional_shadows`]).
-/// The triangle objects' bounds that directional lights frame are found once for all of them.
+/// order (the plan makes them once, [`Plan::shadow_cameras`]), a note for each triangle object a
+/// directional light's map is too coarse to shadow ([`coarse_directional_shadows`]), and for
+/// `--explain` what each directional light's map spans. The triangle objects' bounds that
+/// directional lights frame are found once for all of them.
 ///
 /// Errors: those of [`light_camera`].
-pub fn shadow_cameras(scene: &Scene, plan: &Plan) -> Result<(Vec<Camera>, Vec<String>)> {
+pub fn shadow_cameras(
+    scene: &Scene,
+    plan: &Plan,
+) -> Result<(Vec<Camera>, Vec<String>, Vec<String>)> {
     let frame = OnceCell::new();
     let cameras = (scene.lighting.sources())
         .filter(|source| source.shadows())
@@ -130,19 +134,38 @@ pub fn shadow_cameras(scene: &Scene, plan: &Plan) -> Result<(Vec<Camera>, Vec<St
             })
         })
         .collect::<Result<_>>()?;
-    let notes = frame.get().map_or_else(Vec::new, |frame| {
-        coarse_directional_shadows(scene, plan, frame)
-    });
-    Ok((cameras, notes))
+    let Some(frame) = frame.get() else {
+        return Ok((cameras, Vec::new(), Vec::new()));
+    };
+    let size = scene.lighting.shadow_map;
+    let framing = (scene.lighting.sources())
+        .filter_map(|source| match source {
+            LightSource::Directional(l) if l.shadows => {
+                let (centre, radius, reach) = frame.framing(l.direction);
+                let [x, y, z] = centre.to_array();
+                Some(format!(
+                    "the directional light's {size}² shadow map spans {:.4} units about [{x:.4}, {y:.4}, {z:.4}] (what the camera sees of the triangle objects), texels {:.4e} wide; its near plane {:.4} units towards the light from there",
+                    2.1 * radius,
+                    2.1 * radius / f64::from(size),
+                    1.5 * reach,
+                ))
+            }
+            _ => None,
+        })
+        .collect();
+    Ok((
+        cameras,
+        coarse_directional_shadows(scene, plan, frame),
+        framing,
+    ))
 }
 
 /// What a directional light's map frames: a sphere (centre, radius) around what the camera can
-/// see of the triangle objects over the exposure, and the box around all of them, whose part
-/// towards the light the map's depth range must hold (any of it may shadow what is seen).
+/// see of the triangle objects over the exposure, and the objects' boxes, whose parts towards
+/// the light over what is seen the map's depth range must hold (they may shadow it).
 #[derive(Clone, Debug)]
 struct DirectionalFrame {
     seen: (DVec3, f64),
-    all: [DVec3; 2],
     /// Each triangle object's index and box ([`triangle_boxes`]).
     boxes: Vec<(usize, [DVec3; 2])>,
 }
@@ -188,30 +211,36 @@ impl DirectionalFrame {
         };
         DirectionalFrame {
             seen: sphere(if seen[0].x <= seen[1].x { seen } else { all }),
-            all,
             boxes,
         }
     }
 
-    /// Whether `bounds` reach into the map of a light along the unit `direction`: the cylinder
-    /// along it of the 1.05 radii about the centre that the map frames ([`Self::framing`]).
-    fn frames(&self, [lo, hi]: [DVec3; 2], direction: DVec3) -> bool {
-        let (centre, radius, _) = self.framing(direction);
-        let offset = 0.5 * (lo + hi) - centre;
+    /// Whether `bounds` reach into the cylinder along the unit `direction` of 1.05 × `radius`
+    /// about the seen sphere's centre.
+    fn within(&self, [lo, hi]: [DVec3; 2], direction: DVec3, radius: f64) -> bool {
+        let offset = 0.5 * (lo + hi) - self.seen.0;
         let across = offset - offset.dot(direction) * direction;
         across.length() - 0.5 * (hi - lo).length() <= 1.05 * radius
     }
 
+    /// Whether `bounds` reach into the map of a light along the unit `direction`
+    /// ([`Self::framing`]).
+    fn frames(&self, bounds: [DVec3; 2], direction: DVec3) -> bool {
+        self.within(bounds, direction, self.framing(direction).1)
+    }
+
     /// For a light along the unit `direction`, the centre and radius of the sphere its map
-    /// frames, and how far the objects reach from that centre towards the light (at least the
-    /// radius). The sphere is the seen one, widened to [`MAX_REACH_RADII`]⁻¹ of the reach where
-    /// objects lie farther towards the light than that many radii: the light's camera stands
+    /// frames, and how far the objects that may shadow the seen sphere (in its cylinder along
+    /// the light) reach from its centre towards the light (at least its radius). The sphere is
+    /// the seen one, widened to [`MAX_REACH_RADII`]⁻¹ of the reach where objects lie farther
+    /// towards the light than that many radii: the light's camera stands
     /// [`DIRECTIONAL_DISTANCE`] reaches away, and its view may be no narrower than a camera's.
     fn framing(&self, direction: DVec3) -> (DVec3, f64, f64) {
         let (centre, radius) = self.seen;
-        let [lo, hi] = self.all;
-        let reach = (box_corners(lo, hi).iter())
-            .map(|&corner| (corner - centre).dot(direction))
+        let reach = (self.boxes.iter())
+            .filter(|(_, bounds)| self.within(*bounds, direction, radius))
+            .flat_map(|&(_, [lo, hi])| box_corners(lo, hi))
+            .map(|corner| (corner - centre).dot(direction))
             .fold(radius, f64::max);
         (centre, radius.max(reach / MAX_REACH_RADII), reach)
     }
