@@ -823,30 +823,32 @@ fn a_light_whose_shadow_map_cannot_be_made_is_refused_by_name() {
         9,
     )
     .unwrap();
-    let floor = |x: f64| object("floor", &square(2.0), [1.0; 3], &[(0.0, at(x, 0.0, 0.0))]);
+    let floor = |p: DVec3| object("floor", &square(2.0), [1.0; 3], &[(0.0, at(p.x, p.y, p.z))]);
     let spot =
         |distance: f64| Spot::new(DVec3::splat(distance), DVec3::ZERO, 30.0, 1.0, true).unwrap();
     let sun = Light::new(DVec3::new(0.3, 1.0, 0.2), 0.5)
         .unwrap()
         .with_shadows(true);
-    // A second floor `x` to the right.
-    let with = |lighting: Lighting, x: f64| {
+    // A second floor at `p`.
+    let with = |lighting: Lighting, p: DVec3| {
         Scene::new(camera.clone())
             .with_lighting(lighting)
-            .with_object(floor(0.0))
-            .with_object(floor(x))
+            .with_object(floor(DVec3::ZERO))
+            .with_object(floor(p))
     };
     let spot_at = |distance| {
         Lighting::new(0.1, Vec::new())
             .unwrap()
             .with_spots(vec![spot(distance)])
     };
-    let sun_over = |x| with(Lighting::new(0.1, vec![sun]).unwrap(), x);
-    // A spot 10¹⁸ away cannot step along its direction in double precision; triangles 10³⁰⁰
-    // apart put a directional light's view of them at infinity.
+    let sun_over = |p| with(Lighting::new(0.1, vec![sun]).unwrap(), p);
+    let right = DVec3::new(3.0, 0.0, 0.0);
+    // A spot 10¹⁸ away cannot step along its direction in double precision; a floor 10³⁰⁷ up
+    // the light from what is seen, which may shadow it, puts a directional light's view at
+    // infinity. (A floor 10³⁰⁰ off to the side shadows nothing seen, and is not framed.)
     for (scene, light) in [
-        (with(spot_at(1e18), 3.0), "spot"),
-        (sun_over(1e300), "directional"),
+        (with(spot_at(1e18), right), "spot"),
+        (sun_over(sun.direction * 1e307), "directional"),
     ] {
         let Err(error) = Plan::new(&scene, &Method::ANALYTIC) else {
             panic!("the {light} light's shadow map was made");
@@ -857,7 +859,8 @@ fn a_light_whose_shadow_map_cannot_be_made_is_refused_by_name() {
             "{error}"
         );
     }
-    for scene in [with(spot_at(10.0), 3.0), sun_over(3.0)] {
+    let aside = DVec3::new(1e300, 0.0, 0.0);
+    for scene in [with(spot_at(10.0), right), sun_over(right), sun_over(aside)] {
         assert!(all_finite(&render(&scene, &Method::ANALYTIC).image));
     }
 }

@@ -216,11 +216,14 @@ impl DirectionalFrame {
     }
 
     /// Whether `bounds` reach into the cylinder along the unit `direction` of 1.05 × `radius`
-    /// about the seen sphere's centre.
+    /// about the seen sphere's centre, allowing for the rounding of a box far along it.
     fn within(&self, [lo, hi]: [DVec3; 2], direction: DVec3, radius: f64) -> bool {
+        // In units of the offset's largest coordinate, whose squares do not overflow.
         let offset = 0.5 * (lo + hi) - self.seen.0;
+        let unit = offset.abs().max_element().max(f64::MIN_POSITIVE);
+        let (offset, half) = (offset / unit, 0.5 * (hi - lo) / unit);
         let across = offset - offset.dot(direction) * direction;
-        across.length() - 0.5 * (hi - lo).length() <= 1.05 * radius
+        across.length() - half.length() <= 1.05 * radius / unit + 1e-12 * offset.length()
     }
 
     /// Whether `bounds` reach into the map of a light along the unit `direction`
