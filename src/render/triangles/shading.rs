@@ -148,13 +148,8 @@ impl Prepared<'_> {
                         stats.shadow_lookups_left_out += left_out;
                         stats.shadow_lookups += self.shadows.len() - left_out;
                     }
-                    // A plain face's surface from the tile's copy of its plane and shading.
-                    let colour = match scratch.tile.of(index).and_then(|e| Some((e, e.plain?))) {
-                        Some((entry, face)) => {
-                            let hit = entry.depth.hit_at_start_with(d, depth);
-                            let surface = self.plain_surface_point(&hit, d, 0.0, &face);
-                            self.shade_at(item, surface, t, unshadowed)
-                        }
+                    let colour = match self.plain_at_start(index, d, depth, &scratch.tile) {
+                        Some(surface) => self.shade_at(item, surface, t, unshadowed),
                         None => self.shade(item, &self.corners(item), d, (0.0, t), unshadowed),
                     };
                     (colour, depth)
@@ -470,20 +465,11 @@ impl Prepared<'_> {
         let fraction = |t: f64| if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
         let span = piece.t;
         if segment.still {
-            // A plain face's surface from the tile's copy of its plane and shading, at the depth
-            // its interval keeps (a still face's all along, as it was inserted).
-            let entry = tile.of(piece.item);
-            let plain = entry.and_then(|entry| {
-                Some((
-                    entry.depth.hit_at_start_with(d, piece.depth[0]),
-                    entry.plain?,
-                ))
-            });
-            let surface = match plain {
-                Some((hit, face)) => self.plain_surface_point(&hit, d, 0.0, &face),
-                None => self.surface_point(item, &self.corners(item), d, 0.0),
-            };
-            let unshadowed = unshadowed_of(entry);
+            // At the depth its interval keeps (a still face's all along, as it was inserted).
+            let surface = self
+                .plain_at_start(piece.item, d, piece.depth[0], tile)
+                .unwrap_or_else(|| self.surface_point(item, &self.corners(item), d, 0.0));
+            let unshadowed = unshadowed_of(tile.of(piece.item));
             let irradiance =
                 self.still_irradiance((surface.normal, surface.point), span, item, unshadowed);
             return surface.albedo.map(|c| c * irradiance);
@@ -756,6 +742,20 @@ impl Prepared<'_> {
             point,
             albedo: self.albedo_with(item, hit.weights),
         }
+    }
+
+    /// The surface where the ray `d` meets item `index` at `depth` at its segment's start, from
+    /// the tile's copy of its plane and shading: `None` unless the tile holds it as a plain face.
+    fn plain_at_start(
+        &self,
+        index: u32,
+        d: DVec3,
+        depth: f64,
+        tile: &TileShared,
+    ) -> Option<SurfacePoint> {
+        let entry = tile.of(index)?;
+        let hit = entry.depth.hit_at_start_with(d, depth);
+        Some(self.plain_surface_point(&hit, d, 0.0, &entry.plain?))
     }
 
     /// The surface where the ray `d` meets a plain item at segment fraction `s`, at `hit`, from

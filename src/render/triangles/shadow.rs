@@ -138,24 +138,28 @@ pub fn shadow_cameras(
         return Ok((cameras, Vec::new(), Vec::new()));
     };
     let size = scene.lighting.shadow_map;
-    let framing = (scene.lighting.sources())
+    let lights: Vec<_> = (scene.lighting.sources())
         .filter_map(|source| match source {
             LightSource::Directional(l) if l.shadows => {
-                let (centre, radius, reach) = frame.framing(l.direction);
-                let [x, y, z] = centre.to_array();
-                Some(format!(
-                    "the directional light's {size}² shadow map spans {:.4} units about [{x:.4}, {y:.4}, {z:.4}] (what the camera sees of the triangle objects), texels {:.4e} wide; its near plane {:.4} units towards the light from there",
-                    2.1 * radius,
-                    2.1 * radius / f64::from(size),
-                    1.5 * reach,
-                ))
+                Some((l.direction, frame.framing(l.direction)))
             }
             _ => None,
         })
         .collect();
+    let framing = (lights.iter())
+        .map(|&(_, (centre, radius, reach))| {
+            let [x, y, z] = centre.to_array();
+            format!(
+                "the directional light's {size}² shadow map spans {:.4} units about [{x:.4}, {y:.4}, {z:.4}] (what the camera sees of the triangle objects), texels {:.4e} wide; its near plane {:.4} units towards the light from there",
+                2.1 * radius,
+                2.1 * radius / f64::from(size),
+                1.5 * reach,
+            )
+        })
+        .collect();
     Ok((
         cameras,
-        coarse_directional_shadows(scene, plan, frame),
+        coarse_directional_shadows(scene, plan, frame, &lights),
         framing,
     ))
 }
@@ -178,10 +182,8 @@ impl DirectionalFrame {
     /// Where nothing can be seen, the frame is all of them.
     fn new(scene: &Scene, plan: &Plan) -> DirectionalFrame {
         let boxes = triangle_boxes(scene, plan);
-        let all = boxes.iter().fold(
-            [DVec3::INFINITY, DVec3::NEG_INFINITY],
-            |[lo, hi], (_, [a, b])| [lo.min(*a), hi.max(*b)],
-        );
+        let all = crate::math::bounds(boxes.iter().flat_map(|&(_, ends)| ends));
+        let all = [all.0, all.1];
         let camera = &scene.camera;
         let to_world = camera.view.inverse();
         let (w, h) = (f64::from(camera.width), f64::from(camera.height));
@@ -224,12 +226,6 @@ impl DirectionalFrame {
         let (offset, half) = (offset / unit, 0.5 * (hi - lo) / unit);
         let across = offset - offset.dot(direction) * direction;
         across.length() - half.length() <= 1.05 * radius / unit + 1e-12 * offset.length()
-    }
-
-    /// Whether `bounds` reach into the map of a light along the unit `direction`
-    /// ([`Self::framing`]).
-    fn frames(&self, bounds: [DVec3; 2], direction: DVec3) -> bool {
-        self.within(bounds, direction, self.framing(direction).1)
     }
 
     /// For a light along the unit `direction`, the centre and radius of the sphere its map
@@ -321,16 +317,15 @@ fn light_camera<'f>(
 
 /// Notes for the triangle objects too small for a directional light's shadow map to show: the
 /// map frames what the camera can see of the triangle objects over the whole exposure (the same
-/// for every method, a sphere of `radius`, [`DirectionalFrame`]), so a wide view, or an object
-/// seen far off, stretches its texels until a nearby object's shadow falls within two of them,
-/// lost or faint.
-fn coarse_directional_shadows(scene: &Scene, plan: &Plan, frame: &DirectionalFrame) -> Vec<String> {
-    let directions: Vec<DVec3> = (scene.lighting.sources())
-        .filter_map(|source| match source {
-            LightSource::Directional(l) if l.shadows => Some(l.direction),
-            _ => None,
-        })
-        .collect();
+/// for every method, [`DirectionalFrame`]), so a wide view, or an object seen far off, stretches
+/// its texels until a nearby object's shadow falls within two of them, lost or faint. `lights`
+/// holds each shadowed directional light's direction and [`DirectionalFrame::framing`].
+fn coarse_directional_shadows(
+    scene: &Scene,
+    plan: &Plan,
+    frame: &DirectionalFrame,
+    lights: &[(DVec3, (DVec3, f64, f64))],
+) -> Vec<String> {
     // The light camera frames 1.05 radii each way ([`light_camera`]).
     let texel = |radius: f64| 2.1 * radius / f64::from(scene.lighting.shadow_map);
     let middle = scene.shutter.middle();
@@ -349,9 +344,10 @@ fn coarse_directional_shadows(scene: &Scene, plan: &Plan, frame: &DirectionalFra
             let mesh = plan.mesh_of(index)?;
             let (lo, hi) = crate::math::bounds(mesh.positions.iter().copied());
             let across = (hi - lo).length() * object.motion.pose_at(middle).scale;
-            let radius = (directions.iter())
-                .filter(|&&d| frame.frames(bounds, d))
-                .map(|&d| frame.framing(d).1)
+            // The first map whose cylinder the object reaches into and that is too coarse for it.
+            let radius = (lights.iter())
+                .filter(|&&(d, (_, radius, _))| frame.within(bounds, d, radius))
+                .map(|&(_, (_, radius, _))| radius)
                 .find(|&radius| across < 2.0 * texel(radius))?;
             Some(format!(
                     "{:?} is {} across, within two texels of the directional light's shadow map ({} each: the map frames what the camera sees of the triangle objects over the exposure, {} across), so its shadow is lost or faint: a larger shadow_map, or a narrower view, would show it",
